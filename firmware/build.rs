@@ -1,0 +1,13 @@
+//! Puts the board's memory layout where the cortex-m-rt linker script finds it.
+use std::path::PathBuf;
+
+fn main() {
+    let out = PathBuf::from(std::env::var_os("OUT_DIR").unwrap_or_default());
+    let manifest = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default());
+    let memory = manifest.join("../memory.x");
+    if let Err(e) = std::fs::copy(&memory, out.join("memory.x")) {
+        panic!("cannot copy {}: {e}", memory.display());
+    }
+    println!("cargo:rustc-link-search={}", out.display());
+    println!("cargo:rerun-if-changed={}", memory.display());
+}

@@ -1,0 +1,63 @@
+//! Command-line front end: argument parsing and the one-line error / exit-code convention.
+//!
+//! Every failure prints a single `error: ...` line on stderr and exits with code 2.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use crate::commands;
+
+/// Exit code for every user-facing error (bad input, bad flags, I/O).
+pub const EXIT_ERROR: u8 = 2;
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "host-sim",
+    version,
+    about = "TDE egomotion: run, evaluate and inspect event recordings on the host"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Sweep one FAC->TRG pair over time differences 0-100 ms (the paper's Fig. 2b/c).
+    Sweep(commands::sweep::Args),
+}
+
+/// Parses the arguments, runs the command, maps errors to one line and exit code 2.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let code = if e.use_stderr() { EXIT_ERROR } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    let result = match cli.command {
+        Command::Sweep(args) => commands::sweep::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", one_line(&e));
+            ExitCode::from(EXIT_ERROR)
+        }
+    }
+}
+
+/// The error and its causes on one line.
+pub fn one_line(e: &anyhow::Error) -> String {
+    let mut s = String::new();
+    for (i, cause) in e.chain().enumerate() {
+        if i > 0 {
+            s.push_str(": ");
+        }
+        s.push_str(&cause.to_string().replace('\n', " "));
+    }
+    s
+}

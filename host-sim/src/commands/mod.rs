@@ -1,0 +1,3 @@
+//! One module per subcommand: its `Args` and its `run`.
+
+pub mod sweep;

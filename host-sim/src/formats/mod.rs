@@ -1,0 +1,1 @@
+//! Reading and writing event recordings, ground truth and IMU data.

@@ -1,0 +1,10 @@
+//! Host side of the TDE egomotion project: recordings in every common event format, the network
+//! run with the fixed-point core or the f64 oracle, evaluation against ground truth, plots,
+//! synthetic scenes and the bridge to the emulated firmware.
+
+pub mod cli;
+pub mod commands;
+pub mod formats;
+pub mod output;
+pub mod plot;
+pub mod testdata;

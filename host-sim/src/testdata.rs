@@ -1,0 +1,33 @@
+//! Locating `../shared/data` for tests that use the real recordings and synthetic sequences.
+//!
+//! The data is beside the repository in development and CI, never in a user's clone. Tests call
+//! [`shared_data`]: when the folder is absent it prints a visible notice and the test returns
+//! early (skips) — unless the `CI` environment variable is set, in which case absence is a failure.
+
+use std::path::PathBuf;
+
+/// Environment variable that overrides where the shared data lives.
+pub const DATA_ENV: &str = "TDE_SHARED_DATA";
+
+/// The shared data folder (`$TDE_SHARED_DATA`, else `<repo>/../shared/data`), or `None` with a
+/// notice on stderr when it is absent. Panics (fails the test) when absent and `CI` is set.
+pub fn shared_data(sub: &str) -> Option<PathBuf> {
+    let base = std::env::var_os(DATA_ENV)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"));
+    let dir = base.join(sub);
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    let ci = std::env::var_os("CI").is_some_and(|v| !v.is_empty() && v != "false" && v != "0");
+    assert!(
+        !ci,
+        "shared data folder {} is missing and CI is set: the test cannot be skipped",
+        dir.display()
+    );
+    eprintln!(
+        "NOTICE: skipping: shared data folder {} not found (set {DATA_ENV} to point at it)",
+        dir.display()
+    );
+    None
+}

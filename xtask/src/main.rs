@@ -1,0 +1,192 @@
+//! `cargo xtask <task>`: the one front door for project tasks.
+//!
+//! - `test`:  everything CI runs — system packages, fmt, clippy, every test, the Cortex-M builds.
+//! - `demo`:  the main job on a built-in default input.
+//! - `setup`: install what the other tasks need (system packages through apt when root).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode};
+
+use anyhow::{bail, Context, Result};
+
+/// Debian packages the host tools need to build and run.
+const APT_PACKAGES: &[&str] = &["pkg-config"];
+
+/// The Cortex-M target of the firmware and of the no_std core.
+const TARGET: &str = "thumbv7em-none-eabihf";
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("test") => test(),
+        Some("demo") => demo(&args[1..]),
+        Some("setup") => setup(),
+        Some("help") | Some("--help") | Some("-h") | None => {
+            print_help();
+            Ok(())
+        }
+        Some(other) => {
+            print_help();
+            Err(anyhow::anyhow!("unknown task `{other}`"))
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("xtask: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn print_help() {
+    eprintln!(
+        "usage: cargo xtask <task>\n\n\
+         tasks:\n  \
+         test    fmt, clippy, every test, the Cortex-M builds (what CI runs)\n  \
+         demo    the main job on the built-in default input; results in out/\n  \
+         setup   install the system packages the tools need (apt, when root)"
+    );
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."))
+}
+
+fn cargo() -> Command {
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.current_dir(root());
+    c
+}
+
+fn run(what: &str, mut cmd: Command) -> Result<()> {
+    eprintln!("xtask: {what}");
+    let status = cmd
+        .status()
+        .with_context(|| format!("cannot start: {what}"))?;
+    if !status.success() {
+        bail!("failed: {what} ({status})");
+    }
+    Ok(())
+}
+
+/// Installs missing Debian packages when running as root; otherwise prints the exact command.
+fn setup() -> Result<()> {
+    let missing: Vec<&str> = APT_PACKAGES
+        .iter()
+        .copied()
+        .filter(|p| !deb_installed(p))
+        .collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let list = missing.join(" ");
+    if !is_root() {
+        bail!("missing system packages; install them with:\n  sudo apt-get update && sudo apt-get install -y {list}");
+    }
+    let mut update = Command::new("apt-get");
+    update.args(["update", "-qq"]);
+    run("apt-get update", update)?;
+    let mut install = Command::new("apt-get");
+    install.args(["install", "-y", "-qq"]).args(&missing);
+    install.env("DEBIAN_FRONTEND", "noninteractive");
+    run(&format!("apt-get install {list}"), install)
+}
+
+fn deb_installed(pkg: &str) -> bool {
+    Command::new("dpkg-query")
+        .args(["-W", "-f=${Status}", pkg])
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).contains("install ok installed"))
+        .unwrap_or(false)
+}
+
+fn is_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
+        .unwrap_or(false)
+}
+
+fn test() -> Result<()> {
+    setup()?;
+    let mut c = cargo();
+    c.args(["fmt", "--all", "--check"]);
+    run("cargo fmt --check", c)?;
+    let mut c = cargo();
+    c.args([
+        "clippy",
+        "--workspace",
+        "--all-targets",
+        "--release",
+        "--",
+        "-D",
+        "warnings",
+    ]);
+    run("cargo clippy (workspace)", c)?;
+    // Release profile: the oracle comparisons and recordings are heavy in debug builds.
+    let mut c = cargo();
+    c.args(["test", "--workspace", "--release"]);
+    run("cargo test --workspace --release", c)?;
+    let mut c = cargo();
+    c.args([
+        "build",
+        "-p",
+        "core-nostd",
+        "--no-default-features",
+        "--release",
+        "--target",
+        TARGET,
+    ]);
+    run("core-nostd for thumbv7em-none-eabihf", c)?;
+    firmware_build()?;
+    eprintln!("xtask: all checks passed");
+    Ok(())
+}
+
+/// Checks and builds the firmware (its own workspace, Cortex-M only).
+fn firmware_build() -> Result<()> {
+    let mut c = cargo();
+    c.current_dir(root().join("firmware"));
+    c.args(["fmt", "--check"]);
+    run("firmware fmt --check", c)?;
+    let mut c = cargo();
+    c.current_dir(root().join("firmware"));
+    c.args(["build", "--release"]);
+    run("firmware build (thumbv7em-none-eabihf)", c)?;
+    let mut c = cargo();
+    c.current_dir(root().join("firmware"));
+    c.args(["clippy", "--release", "--", "-D", "warnings"]);
+    run("firmware clippy", c)
+}
+
+fn demo(_args: &[String]) -> Result<()> {
+    setup()?;
+    let out = root().join("out");
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut c = cargo();
+    c.args([
+        "run",
+        "--release",
+        "-p",
+        "host-sim",
+        "--",
+        "sweep",
+        "--model",
+        "fixed",
+        "--out",
+    ])
+    .arg(out.join("sweep.csv"))
+    .arg("--plot")
+    .arg(out.join("sweep.png"));
+    run(
+        "host-sim sweep (fixed core, plot against the f64 oracle)",
+        c,
+    )?;
+    eprintln!("xtask: demo done: out/sweep.csv, out/sweep.png");
+    Ok(())
+}
