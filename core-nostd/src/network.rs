@@ -1,14 +1,27 @@
-//! The TDE network: events in, spikes out, over a [`Layout`] with state in caller-provided cells.
+//! The TDE network: events in; trigger records and spikes out; over a [`Layout`], with all state
+//! in caller-provided slices.
 //!
 //! A [`Cell`] is 24 bytes: the pixel's FAC trace, the time the cell refers to, and the two units
 //! the pixel triggers — 12 bytes per unit, FAC trace and clock included. State is stored exactly
 //! as computed (see [`Trace`] for why 16-bit traces are not enough): the membrane word holds
 //! `u / theta` in U1F31, or, with the top bit set, the remaining refractory time in µs (bits
-//! 30..16) and its sub-µs lag (bits 15..0). Which units a cell has comes from the layout, and a
-//! cell whose words are all zero is idle.
+//! 30..16) and its sub-µs lag (bits 15..0). The top bit of the stored FAC trace holds the
+//! polarity of the pixel's last event (for the onset filter). Which units a cell has comes from
+//! the layout; a cell whose words are all zero is idle.
 //!
-//! Spikes are emitted when a unit is advanced: on every event at its TRG pixel, and by
-//! [`Network::flush`] / the readout clock (see [`Network::advance_cells`]).
+//! # What comes out
+//! - For every event that triggers units, one [`Trigger`]: the drive `w_T · I_F(t⁻)` each of
+//!   the pixel's two units receives, which is what its burst encodes (a burst from rest is a
+//!   monotone function of it: the sweep), and the pixel's own FAC trace after the event.
+//! - If the sink asks for them ([`NetSink::SPIKES`]), every spike of every unit. Units are
+//!   advanced lazily (on their next input) and by [`Network::tick`], which advances the cells
+//!   marked in the active bitset, so a spike is emitted at the latest at the first tick after it.
+//!   A sink that does not want spikes skips the membrane dynamics altogether.
+//!
+//! # Input filter
+//! [`InputFilter::Onsets`] passes only the first event of each same-polarity run at a pixel (or
+//! an event after `gap` without onset): one event per edge and pixel, which makes the drive an
+//! unbiased code of the edge's travel time (see the readout).
 
 use fixed::types::U1F31;
 
@@ -20,13 +33,16 @@ use crate::unit::{elapsed_us, Kernel, UnitState};
 /// Membrane word: top bit set = refractory (remaining µs in bits 30..16, lag in 15..0).
 const REFRACTORY: u32 = 1 << 31;
 
+/// Stored FAC trace: top bit = polarity of the pixel's last event (1 = ON).
+const POLARITY: u32 = 1 << 31;
+
 /// State of one pixel: its FAC trace and the two units it triggers. 24 bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[repr(C)]
 pub struct Cell {
     /// Time (µs) the state refers to.
     t_us: u32,
-    /// FAC trace ([`Trace`] bits).
+    /// FAC trace ([`Trace`] bits) and, in the top bit, the last polarity.
     i_fac: u32,
     /// TRG traces of the left-to-right and right-to-left units ([`Trace`] bits).
     i_trg: [u32; 2],
@@ -35,10 +51,20 @@ pub struct Cell {
 }
 
 impl Cell {
-    /// Whether the cell holds any state that still changes with time.
+    /// Whether the cell holds state that still changes with time.
     #[inline]
     fn is_live(&self) -> bool {
-        (self.i_fac | self.i_trg[0] | self.i_trg[1]) != 0 || (self.mem[0] | self.mem[1]) != 0
+        ((self.i_fac & !POLARITY) | self.i_trg[0] | self.i_trg[1] | self.mem[0] | self.mem[1]) != 0
+    }
+
+    #[inline]
+    fn fac(&self) -> Trace {
+        Trace::from_bits(self.i_fac & !POLARITY)
+    }
+
+    #[inline]
+    fn set_fac(&mut self, i: Trace) {
+        self.i_fac = (self.i_fac & POLARITY) | (i.to_bits() & !POLARITY);
     }
 }
 
@@ -62,25 +88,63 @@ impl Spike {
     }
 }
 
-/// Where spikes go.
-pub trait SpikeSink {
-    /// One spike (spikes of one unit arrive in time order).
-    fn spike(&mut self, spike: Spike);
+/// One event at a pixel that triggers units: what each of its units' bursts encodes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Trigger {
+    /// Event time (µs).
+    pub t_us: u32,
+    /// Pixel.
+    pub x: u16,
+    /// Pixel row.
+    pub y: u16,
+    /// Drive `w_T · I_F(t⁻)` to the left-to-right and right-to-left unit (0 where the layout has
+    /// no such unit).
+    pub drive: [Trace; 2],
+    /// The pixel's own FAC trace just after this event.
+    pub own_fac: Trace,
 }
 
-impl<F: FnMut(Spike)> SpikeSink for F {
-    fn spike(&mut self, spike: Spike) {
-        self(spike)
+/// Where the network's output goes.
+pub trait NetSink {
+    /// Whether this sink wants individual spikes. When `false` the network does not run the
+    /// units' membrane dynamics at all (their bursts are described by [`Trigger`]s).
+    const SPIKES: bool;
+    /// One triggering event.
+    fn trigger(&mut self, _t: &Trigger) {}
+    /// One spike (spikes of one unit arrive in time order).
+    fn spike(&mut self, _s: Spike) {}
+}
+
+/// Any `FnMut(Spike)` is a spike sink.
+impl<F: FnMut(Spike)> NetSink for F {
+    const SPIKES: bool = true;
+    fn spike(&mut self, s: Spike) {
+        self(s)
     }
+}
+
+/// Which events enter the network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputFilter {
+    /// Every event (the paper's network).
+    All,
+    /// Only onsets: an event whose polarity differs from the pixel's previous event, or that
+    /// comes when the pixel's FAC trace shows no onset within `gap_us`.
+    Onsets {
+        /// Longest same-polarity run (µs) before an event counts as a new onset.
+        gap_us: u32,
+    },
 }
 
 /// Counters of what the network saw.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NetStats {
-    /// Events processed.
+    /// Events offered.
     pub events: u64,
     /// Events outside the sensor or the layout, ignored.
     pub ignored: u64,
+    /// Events the input filter held back.
+    pub filtered: u64,
     /// Events whose time lay before their cell's time (processed at the cell's time).
     pub out_of_order: u64,
     /// Spikes of left-to-right units.
@@ -99,6 +163,13 @@ pub enum NetError {
         /// Cells provided.
         given: usize,
     },
+    /// The active bitset is shorter than [`active_words`] of the cell count.
+    TooFewActiveWords {
+        /// Words needed.
+        needed: usize,
+        /// Words provided.
+        given: usize,
+    },
 }
 
 impl core::fmt::Display for NetError {
@@ -107,40 +178,44 @@ impl core::fmt::Display for NetError {
             Self::TooFewCells { needed, given } => {
                 write!(f, "layout needs {needed} cells, {given} given")
             }
+            Self::TooFewActiveWords { needed, given } => {
+                write!(f, "active bitset needs {needed} words, {given} given")
+            }
         }
     }
 }
 
-/// The network over layout `L`, borrowing its kernel and its cell storage.
+/// Words of the active bitset for `cells` cells.
+pub const fn active_words(cells: usize) -> usize {
+    cells.div_ceil(32)
+}
+
+/// The network over layout `L`, borrowing its kernel and its state.
 pub struct Network<'a, L: Layout> {
     kernel: &'a Kernel,
     layout: L,
     cells: &'a mut [Cell],
+    active: &'a mut [u32],
+    filter: InputFilter,
+    /// FAC trace level below which the last onset is older than the filter's gap.
+    onset_level: Trace,
+    /// Next cell of the round-robin clock refresh.
+    refresh: usize,
     stats: NetStats,
-}
-
-#[inline]
-fn trace_to_store(x: Trace) -> u32 {
-    x.to_bits()
-}
-
-#[inline]
-fn trace_from_store(b: u32) -> Trace {
-    Trace::from_bits(b)
 }
 
 #[inline]
 fn unpack_unit(i_trg: u32, mem: u32) -> UnitState {
     if mem & REFRACTORY != 0 {
         UnitState {
-            i_trg: trace_from_store(i_trg),
+            i_trg: Trace::from_bits(i_trg),
             v: U1F31::ZERO,
             refractory_us: (mem & !REFRACTORY) >> 16,
             lag_q16: mem as u16,
         }
     } else {
         UnitState {
-            i_trg: trace_from_store(i_trg),
+            i_trg: Trace::from_bits(i_trg),
             v: U1F31::from_bits(mem),
             refractory_us: 0,
             lag_q16: 0,
@@ -155,22 +230,49 @@ fn pack_unit(u: &UnitState) -> (u32, u32) {
     } else {
         u.v.to_bits().min(!REFRACTORY)
     };
-    (trace_to_store(u.i_trg), mem)
+    (u.i_trg.to_bits(), mem)
 }
 
 impl<'a, L: Layout> Network<'a, L> {
-    /// A network at rest. `cells` must hold at least `layout.cell_count()` cells; they are reset.
-    pub fn new(kernel: &'a Kernel, layout: L, cells: &'a mut [Cell]) -> Result<Self, NetError> {
+    /// A network at rest. `cells` must hold `layout.cell_count()` cells and `active`
+    /// [`active_words`] of that; both are reset.
+    pub fn new(
+        kernel: &'a Kernel,
+        layout: L,
+        cells: &'a mut [Cell],
+        active: &'a mut [u32],
+        filter: InputFilter,
+    ) -> Result<Self, NetError> {
         let needed = layout.cell_count();
         let given = cells.len();
         let Some(cells) = cells.get_mut(..needed) else {
             return Err(NetError::TooFewCells { needed, given });
         };
+        let words = active_words(needed);
+        let given_words = active.len();
+        let Some(active) = active.get_mut(..words) else {
+            return Err(NetError::TooFewActiveWords {
+                needed: words,
+                given: given_words,
+            });
+        };
         cells.fill(Cell::default());
+        active.fill(0);
+        let onset_level = match filter {
+            InputFilter::All => Trace::ZERO,
+            InputFilter::Onsets { gap_us } => {
+                let w = kernel.fac_input(Trace::ZERO);
+                kernel.decay_fac(w, gap_us)
+            }
+        };
         Ok(Self {
             kernel,
             layout,
             cells,
+            active,
+            filter,
+            onset_level,
+            refresh: 0,
             stats: NetStats::default(),
         })
     }
@@ -197,16 +299,13 @@ impl<'a, L: Layout> Network<'a, L> {
     #[inline]
     fn fac_at(&self, c: Option<usize>, t: u32) -> Trace {
         match c.and_then(|c| self.cells.get(c)) {
-            Some(cell) => self
-                .kernel
-                .decay_fac(trace_from_store(cell.i_fac), elapsed_us(cell.t_us, t)),
+            Some(cell) => self.kernel.decay_fac(cell.fac(), elapsed_us(cell.t_us, t)),
             None => Trace::ZERO,
         }
     }
 
-    /// Processes one event: FAC input to its pixel, TRG input to the units the pixel triggers.
-    /// Spikes of those units up to the event time are emitted first.
-    pub fn event<S: SpikeSink>(&mut self, ev: Event, sink: &mut S) {
+    /// Processes one event. Spikes of the units it triggers, up to the event time, come first.
+    pub fn event<S: NetSink>(&mut self, ev: Event, sink: &mut S) {
         self.stats.events += 1;
         let (sw, sh) = self.layout.sensor();
         if ev.x >= sw || ev.y >= sh {
@@ -217,111 +316,174 @@ impl<'a, L: Layout> Network<'a, L> {
             self.stats.ignored += 1;
             return;
         };
+        let t = ev.t_us;
+        if let InputFilter::Onsets { .. } = self.filter {
+            let Some(cell) = self.cells.get_mut(c) else {
+                return;
+            };
+            let was_on = cell.i_fac & POLARITY != 0;
+            if ev.on {
+                cell.i_fac |= POLARITY;
+            } else {
+                cell.i_fac &= !POLARITY;
+            }
+            let flipped = was_on != ev.on;
+            if !flipped && self.fac_at(Some(c), t) >= self.onset_level {
+                self.stats.filtered += 1;
+                return;
+            }
+        }
         let mask = self.layout.units(c);
         let s = self.layout.stride();
-        let t = ev.t_us;
-        // FAC traces of the neighbours, just before this event.
-        let fac_lr = if mask & 1 != 0 {
-            self.fac_at(
-                ev.x.checked_sub(s).and_then(|x| self.layout.cell(x, ev.y)),
-                t,
-            )
-        } else {
-            Trace::ZERO
+        let w_trg = self.kernel.params().w_trg;
+        let drive_of = |fac: Trace| -> Trace {
+            let prod = (u64::from(w_trg.to_bits()) * u64::from(fac.to_bits())) >> 16;
+            Trace::from_bits(prod.min(u64::from(crate::params::TRACE_MAX.to_bits())) as u32)
         };
-        let fac_rl = if mask & 2 != 0 {
-            self.fac_at(
-                ev.x.checked_add(s).and_then(|x| self.layout.cell(x, ev.y)),
-                t,
-            )
-        } else {
-            Trace::ZERO
-        };
-        self.advance_cell(c, t, sink);
+        let mut fac = [Trace::ZERO; 2];
+        if mask & 1 != 0 {
+            let n = ev.x.checked_sub(s).and_then(|x| self.layout.cell(x, ev.y));
+            fac[0] = self.fac_at(n, t);
+        }
+        if mask & 2 != 0 {
+            let n = ev.x.checked_add(s).and_then(|x| self.layout.cell(x, ev.y));
+            fac[1] = self.fac_at(n, t);
+        }
+        if let Some(cell) = self.cells.get(c) {
+            if cell.is_live() && t.wrapping_sub(cell.t_us) >= 1 << 31 {
+                self.stats.out_of_order += 1;
+            }
+        }
+        self.advance_cell::<S>(c, t, sink);
         let kernel = self.kernel;
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };
-        cell.i_fac = trace_to_store(kernel.fac_input(trace_from_store(cell.i_fac)));
-        for (dir, fac) in [(Dir::LeftToRight, fac_lr), (Dir::RightToLeft, fac_rl)] {
-            if mask & (1 << dir.slot()) == 0 {
-                continue;
+        let own = kernel.fac_input(cell.fac());
+        cell.set_fac(own);
+        if mask != 0 {
+            sink.trigger(&Trigger {
+                t_us: t,
+                x: ev.x,
+                y: ev.y,
+                drive: [drive_of(fac[0]), drive_of(fac[1])],
+                own_fac: own,
+            });
+        }
+        if S::SPIKES {
+            let mut may_spike = false;
+            for dir in Dir::BOTH {
+                let slot = dir.slot();
+                if mask & (1 << slot) == 0 {
+                    continue;
+                }
+                let (Some(it), Some(mem)) = (cell.i_trg.get_mut(slot), cell.mem.get_mut(slot))
+                else {
+                    continue;
+                };
+                let mut u = unpack_unit(*it, *mem);
+                kernel.trg_input(&mut u, fac.get(slot).copied().unwrap_or(Trace::ZERO));
+                may_spike |= kernel.may_spike(&u);
+                (*it, *mem) = pack_unit(&u);
             }
-            let slot = dir.slot();
-            let (Some(it), Some(mem)) = (cell.i_trg.get_mut(slot), cell.mem.get_mut(slot)) else {
-                continue;
-            };
-            let mut u = unpack_unit(*it, *mem);
-            kernel.trg_input(&mut u, fac);
-            (*it, *mem) = pack_unit(&u);
+            if may_spike {
+                self.mark_active(c);
+            }
         }
     }
 
-    /// Advances cell `c` to time `t`, emitting its units' spikes in `(cell time, t]`.
-    fn advance_cell<S: SpikeSink>(&mut self, c: usize, t: u32, sink: &mut S) {
+    #[inline]
+    fn mark_active(&mut self, c: usize) {
+        if let Some(w) = self.active.get_mut(c / 32) {
+            *w |= 1 << (c % 32);
+        }
+    }
+
+    /// Advances cell `c` to time `t`, emitting its units' spikes in `(cell time, t]`. Returns
+    /// whether a unit of the cell may still spike without further input.
+    fn advance_cell<S: NetSink>(&mut self, c: usize, t: u32, sink: &mut S) -> bool {
         let kernel = self.kernel;
         let Some(cell) = self.cells.get_mut(c) else {
-            return;
+            return false;
         };
         if !cell.is_live() {
             cell.t_us = t;
-            return;
+            return false;
         }
         let dt = t.wrapping_sub(cell.t_us);
         if dt >= 1 << 31 {
-            self.stats.out_of_order += 1;
-            return;
-        }
-        if dt == 0 {
-            return;
+            // The cell is ahead of `t` (an earlier event came late): nothing to advance.
+            return true;
         }
         let t0 = cell.t_us;
-        for dir in Dir::BOTH {
-            let slot = dir.slot();
-            let (Some(it), Some(mem)) = (cell.i_trg.get_mut(slot), cell.mem.get_mut(slot)) else {
-                continue;
-            };
-            if *it == 0 && *mem == 0 {
-                continue;
+        let mut may_spike = false;
+        if S::SPIKES && dt > 0 {
+            for dir in Dir::BOTH {
+                let slot = dir.slot();
+                let (Some(it), Some(mem)) = (cell.i_trg.get_mut(slot), cell.mem.get_mut(slot))
+                else {
+                    continue;
+                };
+                if *it == 0 && *mem == 0 {
+                    continue;
+                }
+                let mut u = unpack_unit(*it, *mem);
+                let n = kernel.advance(&mut u, t0, dt, |ts| {
+                    sink.spike(Spike {
+                        t_us: ts,
+                        cell: c as u32,
+                        dir,
+                    })
+                });
+                match dir {
+                    Dir::LeftToRight => self.stats.spikes_lr += u64::from(n),
+                    Dir::RightToLeft => self.stats.spikes_rl += u64::from(n),
+                }
+                may_spike |= kernel.may_spike(&u);
+                (*it, *mem) = pack_unit(&u);
             }
-            let mut u = unpack_unit(*it, *mem);
-            let n = kernel.advance(&mut u, t0, dt, |ts| {
-                sink.spike(Spike {
-                    t_us: ts,
-                    cell: c as u32,
-                    dir,
-                })
-            });
-            match dir {
-                Dir::LeftToRight => self.stats.spikes_lr += u64::from(n),
-                Dir::RightToLeft => self.stats.spikes_rl += u64::from(n),
-            }
-            (*it, *mem) = pack_unit(&u);
         }
-        cell.i_fac = trace_to_store(kernel.decay_fac(trace_from_store(cell.i_fac), dt));
-        cell.t_us = t;
+        if dt > 0 {
+            cell.set_fac(kernel.decay_fac(cell.fac(), dt));
+            cell.t_us = t;
+        }
+        may_spike
     }
 
-    /// Advances every live cell to `t`, emitting all spikes up to `t`. Cost: one pass over the
-    /// cells; used at the end of a recording and by tests.
-    pub fn flush<S: SpikeSink>(&mut self, t: u32, sink: &mut S) {
+    /// Moves the network's clock to `t`: advances every cell marked active (emitting its spikes
+    /// up to `t`, unmarking it when no unit can spike any more) and one more cell of a
+    /// round-robin sweep that keeps every cell's clock within 2^31 µs of the present.
+    pub fn tick<S: NetSink>(&mut self, t: u32, sink: &mut S) {
+        if S::SPIKES {
+            for w in 0..self.active.len() {
+                let mut bits = self.active.get(w).copied().unwrap_or(0);
+                while bits != 0 {
+                    let b = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let c = w * 32 + b;
+                    if !self.advance_cell::<S>(c, t, sink) {
+                        if let Some(word) = self.active.get_mut(w) {
+                            *word &= !(1 << b);
+                        }
+                    }
+                }
+            }
+        }
+        if !self.cells.is_empty() {
+            let c = self.refresh % self.cells.len();
+            self.refresh = c + 1;
+            if self.advance_cell::<S>(c, t, sink) {
+                self.mark_active(c);
+            }
+        }
+    }
+
+    /// Advances every live cell to `t`, emitting all spikes up to `t` (end of a recording).
+    pub fn flush<S: NetSink>(&mut self, t: u32, sink: &mut S) {
         for c in 0..self.cells.len() {
-            self.advance_cell(c, t, sink);
+            self.advance_cell::<S>(c, t, sink);
         }
-    }
-
-    /// Advances the cells `range` to `t` (the readout clock uses this to bound spike latency
-    /// and to keep every cell's clock within 2^31 µs of the present).
-    pub fn advance_cells<S: SpikeSink>(
-        &mut self,
-        range: core::ops::Range<usize>,
-        t: u32,
-        sink: &mut S,
-    ) {
-        let end = range.end.min(self.cells.len());
-        for c in range.start.min(end)..end {
-            self.advance_cell(c, t, sink);
-        }
+        self.active.fill(0);
     }
 
     /// Number of cells.

@@ -12,9 +12,10 @@ use crate::exp_table::MAX_TAU_US;
 /// few µs where 16 bits would cost hundreds.
 pub type Trace = U5F27;
 
-/// Largest value a FAC or TRG trace may hold. Traces saturate here, which bounds the length of any
-/// burst and therefore the work per event.
-pub const TRACE_MAX: Trace = Trace::const_from_int(16);
+/// Largest value a FAC or TRG trace may hold (just below 16). Traces saturate here, which bounds
+/// the length of any burst and therefore the work per event; it also leaves the top bit of a
+/// stored trace free for flags.
+pub const TRACE_MAX: Trace = Trace::from_bits(0x7FFF_FFFF);
 
 /// Parameters of the TDE unit (`model.md`):
 ///

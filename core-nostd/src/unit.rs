@@ -20,6 +20,9 @@ use crate::params::{ParamError, TdeParams, Trace, TRACE_MAX};
 /// `1.0` in Q32 (the format of normalised membrane values inside the solver).
 const ONE_Q32: u64 = 1 << 32;
 
+/// `1/e` in Q0.32.
+const INV_E_Q32: u128 = 1_580_030_169;
+
 /// Newton iterations allowed per crossing search (each at least halves the distance to a
 /// tangential crossing, so this covers any window up to 2^24 µs).
 const MAX_NEWTON_STEPS: u32 = 40;
@@ -181,6 +184,17 @@ impl Kernel {
     fn charge_over_lag(&self, i_trg: Trace, lag_q16: u16) -> U1F31 {
         let v32 = (self.drive_q48(i_trg) * u128::from(lag_q16)) >> 32;
         U1F31::from_bits((v32 >> 1).min(u128::from(ONE_Q31 - 1)) as u32)
+    }
+
+    /// Whether the unit, left alone, might still spike: a cheap upper bound. The membrane's
+    /// future peak is at most `v + q·tau/e` (and `q` only falls), so `false` is certain.
+    #[inline]
+    pub fn may_spike(&self, unit: &UnitState) -> bool {
+        let q48 = self.drive_q48(unit.i_trg);
+        // q·tau/e in Q48, with 1/e in Q32.
+        let peak48 = (q48 * u128::from(self.params.tau_trg_us) * INV_E_Q32) >> 32;
+        let v48 = u128::from(unit.v.to_bits()) << 17;
+        peak48 + v48 >= 1 << 48
     }
 
     /// Whether the unit, left alone, will spike again (it is in a burst).

@@ -5,7 +5,7 @@
 
 use core_nostd::event::Event;
 use core_nostd::layout::{Dense, Layout};
-use core_nostd::network::{Cell, Network};
+use core_nostd::network::{active_words, Cell, InputFilter, Network};
 use core_nostd::unit::Kernel;
 use cortex_m_rt::entry;
 use panic_halt as _;
@@ -15,10 +15,13 @@ static KERNEL: Kernel = Kernel::DEFAULT;
 #[entry]
 fn main() -> ! {
     let mut cells = [Cell::default(); 64 * 4];
+    let mut active = [0u32; active_words(64 * 4)];
     let mut spikes = 0u32;
     if let Some(layout) = Dense::new(64, 4, 2) {
         if layout.cell_count() <= cells.len() {
-            if let Ok(mut net) = Network::new(&KERNEL, layout, &mut cells) {
+            if let Ok(mut net) =
+                Network::new(&KERNEL, layout, &mut cells, &mut active, InputFilter::All)
+            {
                 let mut t = 0u32;
                 for x in 0..64u16 {
                     t = t.wrapping_add(5_000);

@@ -26,6 +26,14 @@ pub struct Cli {
 pub enum Command {
     /// Sweep one FAC->TRG pair over time differences 0-100 ms (the paper's Fig. 2b/c).
     Sweep(commands::sweep::Args),
+    /// Run a recording through the fixed-point pipeline (the firmware's code) to a yaw-rate CSV.
+    Run(Box<commands::run::Args>),
+    /// Convert a recording to CSV (`t_us,x,y,p`) or Prophesee EVT 3.0.
+    Convert(commands::convert::Args),
+    /// Render a synthetic event sequence with ground truth and a simulated IMU.
+    Synth(commands::synth::Args),
+    /// Compare an estimated yaw rate with ground truth (and the gyro): RMSE, correlation, ARRE.
+    Eval(commands::eval::Args),
 }
 
 /// Parses the arguments, runs the command, maps errors to one line and exit code 2.
@@ -40,6 +48,10 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Sweep(args) => commands::sweep::run(args),
+        Command::Run(args) => commands::run::run(*args),
+        Command::Convert(args) => commands::convert::run(args),
+        Command::Synth(args) => commands::synth::run(args),
+        Command::Eval(args) => commands::eval::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -4,7 +4,9 @@
 
 pub mod cli;
 pub mod commands;
+pub mod eval;
 pub mod formats;
 pub mod output;
 pub mod plot;
+pub mod synth;
 pub mod testdata;

@@ -10,7 +10,7 @@ use std::process::{Command, ExitCode};
 use anyhow::{bail, Context, Result};
 
 /// Debian packages the host tools need to build and run.
-const APT_PACKAGES: &[&str] = &["pkg-config"];
+const APT_PACKAGES: &[&str] = &["pkg-config", "libhdf5-dev"];
 
 /// The Cortex-M target of the firmware and of the no_std core.
 const TARGET: &str = "thumbv7em-none-eabihf";
@@ -129,8 +129,10 @@ fn test() -> Result<()> {
     ]);
     run("cargo clippy (workspace)", c)?;
     // Release profile: the oracle comparisons and recordings are heavy in debug builds.
+    // Overflow checks on, so that an arithmetic overflow anywhere fails the tests.
     let mut c = cargo();
     c.args(["test", "--workspace", "--release"]);
+    c.env("CARGO_PROFILE_RELEASE_OVERFLOW_CHECKS", "true");
     run("cargo test --workspace --release", c)?;
     let mut c = cargo();
     c.args([

@@ -1,3 +1,7 @@
 //! One module per subcommand: its `Args` and its `run`.
 
+pub mod convert;
+pub mod eval;
+pub mod run;
 pub mod sweep;
+pub mod synth;

@@ -1,0 +1,42 @@
+//! Readouts: from the network's output to one yaw value per output period.
+//!
+//! - [`calibrated`]: the product's readout: yaw rate in rad/s, causal, from past events and the
+//!   camera's focal length and principal point only.
+//! - [`normalized`]: the paper's readout, a leaky integrator of right-to-left minus
+//!   left-to-right spikes; divided by its maximum over the recording afterwards (host only).
+
+pub mod calibrated;
+pub mod normalized;
+
+use fixed::types::I16F16;
+
+use crate::network::NetSink;
+
+/// Status bits of a yaw sample.
+pub mod flags {
+    /// No event for more than the stale limit (100 ms): the value says nothing about now.
+    pub const STALE: u8 = 1 << 0;
+    /// The evidence did not pass the readout's gate: the value is 0 for lack of evidence.
+    pub const NO_EVIDENCE: u8 = 1 << 1;
+    /// Input was lost (frames dropped on overload); set by the firmware.
+    pub const OVERLOAD: u8 = 1 << 2;
+    /// The input decoder saw corrupted data; set by the firmware.
+    pub const DECODER_ERRORS: u8 = 1 << 3;
+}
+
+/// One output sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct YawSample {
+    /// Output time (µs, the event clock).
+    pub t_us: u32,
+    /// Yaw rate in rad/s (positive = turning right), or the normalized readout's raw value.
+    pub yaw_rate: I16F16,
+    /// See [`flags`].
+    pub flags: u8,
+}
+
+/// A readout: consumes the network's output, produces a value at each output time.
+pub trait Readout: NetSink {
+    /// The value at output time `t_us` (called once per period, in order) and its flags.
+    fn output(&mut self, t_us: u32) -> (I16F16, u8);
+}

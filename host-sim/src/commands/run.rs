@@ -1,0 +1,318 @@
+//! `host-sim run`: a recording through the fixed-point pipeline (the firmware's code), out as a
+//! yaw-rate CSV.
+//!
+//! Columns: `t_s,yaw_rate_rad_s,flags` with the calibrated readout (rad/s, positive = turning
+//! right), or `t_s,yaw_norm` with the paper's normalized readout (divided by its maximum over the
+//! recording). `t_s` is on the recording's own clock.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use core_nostd::event::Event;
+use core_nostd::fixed::types::U16F16;
+use core_nostd::layout::{Dense, Layout, PaperBoxes};
+use core_nostd::network::{active_words, Cell, InputFilter, Network};
+use core_nostd::pipeline::Pipeline;
+use core_nostd::readout::calibrated::{Calibrated, Calibration};
+use core_nostd::readout::normalized::Normalized;
+use core_nostd::readout::{Readout, YawSample};
+use core_nostd::unit::Kernel;
+
+use crate::formats::{self, Format, HostEvent};
+use crate::output::write_atomically;
+
+/// Default onset gap of the calibrated pipeline (µs): a pixel silent this long starts a new edge.
+pub const ONSET_GAP_US: u32 = 50_000;
+
+/// Default seed of the paper-boxes placement.
+pub const BOXES_SEED: u64 = 1;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LayoutKind {
+    /// Every pixel pair at the stride, both orientations, over the whole sensor.
+    Dense,
+    /// The paper's on-chip layout: two 20x20 boxes, 100 units each.
+    PaperBoxes,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReadoutKind {
+    /// Yaw rate in rad/s, causal, from the bursts' time codes and the intrinsics.
+    Calibrated,
+    /// The paper's leaky spike integrator, divided by its maximum over the recording.
+    Normalized,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Input recording (any format `host-sim convert` reads).
+    pub input: PathBuf,
+    /// Input format (default: detected from the content).
+    #[arg(long, value_enum)]
+    pub format: Option<Format>,
+    /// Network layout.
+    #[arg(long, value_enum, default_value_t = LayoutKind::Dense)]
+    pub layout: LayoutKind,
+    /// FAC-to-TRG distance in pixels.
+    #[arg(long, default_value_t = 2)]
+    pub stride: u16,
+    /// Readout.
+    #[arg(long, value_enum, default_value_t = ReadoutKind::Calibrated)]
+    pub readout: ReadoutKind,
+    /// Focal length in px (default: from the recording).
+    #[arg(long)]
+    pub focal_px: Option<f64>,
+    /// Principal point column in px (default: from the recording, else the sensor centre).
+    #[arg(long)]
+    pub cx: Option<f64>,
+    /// Principal point row in px (kept for completeness; yaw does not use it).
+    #[arg(long)]
+    pub cy: Option<f64>,
+    /// Sensor width in px (default: from the recording).
+    #[arg(long, requires = "height")]
+    pub width: Option<u16>,
+    /// Sensor height in px (default: from the recording).
+    #[arg(long, requires = "width")]
+    pub height: Option<u16>,
+    /// Output rate in Hz.
+    #[arg(long, default_value_t = 1000)]
+    pub rate_hz: u32,
+    /// Output CSV.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also plot the output against time.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// What a run produced.
+pub struct RunOutput {
+    /// `(t_s, value, flags)` per output period.
+    pub samples: Vec<(f64, f64, u8)>,
+    /// Events read.
+    pub events: u64,
+    /// Spikes (normalized readout) or decoded bursts (calibrated).
+    pub outputs: u64,
+    /// Events dropped as outside the sensor or layout.
+    pub ignored: u64,
+    /// Seconds spent in the pipeline.
+    pub seconds: f64,
+}
+
+/// Runs the pipeline over a recording with the given options (the testable core of `run`).
+pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> {
+    if !(1..=1_000_000).contains(&args.rate_hz) || 1_000_000 % args.rate_hz != 0 {
+        bail!("--rate-hz must divide 1000000 (got {})", args.rate_hz);
+    }
+    let period_us = 1_000_000 / args.rate_hz;
+    let (w, h) = match (args.width, args.height) {
+        (Some(w), Some(h)) => (w, h),
+        _ => rec
+            .size_or_extent()
+            .context("cannot tell the sensor size: pass --width and --height")?,
+    };
+    let focal = args
+        .focal_px
+        .or(rec.intrinsics.map(|i| i.fx))
+        .filter(|f| *f > 0.0);
+    let cx = args
+        .cx
+        .or(rec.intrinsics.map(|i| i.cx))
+        .unwrap_or((f64::from(w) - 1.0) / 2.0);
+    let kernel = Kernel::DEFAULT;
+    match args.layout {
+        LayoutKind::Dense => {
+            let layout = Dense::new(w, h, args.stride)
+                .with_context(|| format!("stride {} does not fit a {w}x{h} sensor", args.stride))?;
+            run_on_layout(args, rec, &kernel, layout, focal, cx, period_us)
+        }
+        LayoutKind::PaperBoxes => {
+            let layout =
+                PaperBoxes::with_stride(w, h, args.stride, BOXES_SEED).with_context(|| {
+                    format!(
+                        "the paper boxes (stride {}) do not fit a {w}x{h} sensor",
+                        args.stride
+                    )
+                })?;
+            run_on_layout(args, rec, &kernel, layout, focal, cx, period_us)
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_on_layout<L: Layout>(
+    args: &Args,
+    rec: &formats::Recording,
+    kernel: &Kernel,
+    layout: L,
+    focal: Option<f64>,
+    cx: f64,
+    period_us: u32,
+) -> Result<RunOutput> {
+    let stride = layout.stride();
+    let mut cells = vec![Cell::default(); layout.cell_count()];
+    let mut active = vec![0u32; active_words(layout.cell_count())];
+    match args.readout {
+        ReadoutKind::Calibrated => {
+            let f = focal.context("focal length unknown: pass --focal-px (and --cx)")?;
+            let cal = Calibration {
+                period_us,
+                ..Calibration::new(
+                    U16F16::saturating_from_num(f),
+                    U16F16::saturating_from_num(cx),
+                )
+            };
+            let readout = Calibrated::new(kernel, stride, cal);
+            let net = Network::new(
+                kernel,
+                layout,
+                &mut cells,
+                &mut active,
+                InputFilter::Onsets {
+                    gap_us: ONSET_GAP_US,
+                },
+            )
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+            let mut p = Pipeline::new(net, readout, period_us);
+            let mut out = feed(&mut p, &rec.events, period_us)?;
+            out.outputs = p.readout().samples;
+            out.ignored = p.network().stats().ignored;
+            Ok(out)
+        }
+        ReadoutKind::Normalized => {
+            let readout = Normalized::new(10_000, period_us);
+            let net = Network::new(kernel, layout, &mut cells, &mut active, InputFilter::All)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            let mut p = Pipeline::new(net, readout, period_us);
+            let mut out = feed(&mut p, &rec.events, period_us)?;
+            let st = p.network().stats();
+            out.outputs = st.spikes_lr + st.spikes_rl;
+            out.ignored = st.ignored;
+            let peak = out.samples.iter().map(|s| s.1.abs()).fold(0.0f64, f64::max);
+            if peak > 0.0 {
+                for s in &mut out.samples {
+                    s.1 /= peak;
+                }
+            }
+            Ok(out)
+        }
+    }
+}
+
+/// Feeds events (host µs, u64) to a pipeline on its u32 clock (relative to the first event,
+/// wrapping), collecting samples with times back on the recording's clock.
+fn feed<L: Layout, R: Readout>(
+    p: &mut Pipeline<'_, L, R>,
+    events: &[HostEvent],
+    period_us: u32,
+) -> Result<RunOutput> {
+    let Some(first) = events.first() else {
+        bail!("the recording has no events");
+    };
+    let t0 = first.t_us;
+    let bar = progress_bar(events.len() as u64);
+    let start = Instant::now();
+    let mut samples = Vec::new();
+    let mut k: u64 = 0;
+    let mut collect = |s: YawSample| {
+        k += 1;
+        let t = t0 + k * u64::from(period_us);
+        let _ = s.t_us;
+        samples.push((
+            t as f64 * 1e-6,
+            f64::from(s.yaw_rate.to_bits()) / 65536.0,
+            s.flags,
+        ));
+    };
+    for (i, e) in events.iter().enumerate() {
+        let ev = Event {
+            t_us: e.t_us.wrapping_sub(t0) as u32,
+            x: e.x,
+            y: e.y,
+            on: e.on,
+        };
+        p.event(ev, &mut collect);
+        if i % 65_536 == 0 {
+            bar.set_position(i as u64);
+        }
+    }
+    let last = events.last().map_or(0, |e| e.t_us.wrapping_sub(t0) as u32);
+    p.poll(last, &mut collect);
+    bar.finish_and_clear();
+    Ok(RunOutput {
+        samples,
+        events: events.len() as u64,
+        outputs: 0,
+        ignored: 0,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// A progress bar on a terminal, hidden otherwise.
+pub fn progress_bar(len: u64) -> indicatif::ProgressBar {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{spinner} {bar:40} {pos}/{len} events ({eta})")
+    {
+        bar.set_style(style);
+    }
+    bar
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let rec = formats::read(&args.input, args.format)?;
+    let out = run_pipeline(&args, &rec)?;
+    let normalized = args.readout == ReadoutKind::Normalized;
+    write_atomically(&args.out, |w| {
+        if normalized {
+            writeln!(w, "t_s,yaw_norm")?;
+            for (t, v, _) in &out.samples {
+                writeln!(w, "{t:.6},{v:.6}")?;
+            }
+        } else {
+            writeln!(w, "t_s,yaw_rate_rad_s,flags")?;
+            for (t, v, f) in &out.samples {
+                writeln!(w, "{t:.6},{v:.6},{f}")?;
+            }
+        }
+        Ok(())
+    })?;
+    if let Some(plot) = &args.plot {
+        let label = if normalized {
+            "yaw (normalized)"
+        } else {
+            "yaw rate (rad/s)"
+        };
+        crate::plot::time_series(
+            plot,
+            "host-sim run",
+            label,
+            &[(
+                "estimate",
+                &out.samples.iter().map(|s| (s.0, s.1)).collect::<Vec<_>>(),
+            )],
+        )
+        .with_context(|| format!("cannot draw {}", plot.display()))?;
+    }
+    eprintln!(
+        "{} events ({} outside the layout), {} {}, {:.1} M events/s; wrote {} samples to {}",
+        out.events,
+        out.ignored,
+        out.outputs,
+        if normalized {
+            "spikes"
+        } else {
+            "bursts decoded"
+        },
+        out.events as f64 / out.seconds.max(1e-9) / 1e6,
+        out.samples.len(),
+        args.out.display()
+    );
+    Ok(())
+}

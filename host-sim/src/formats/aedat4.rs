@@ -1,0 +1,446 @@
+//! iniVation AEDAT 4.0: `#!AER-DAT4.0\r\n`, a `u32` length and an `IOHeader` FlatBuffer
+//! (compression, position of the file data table, XML description of the streams), then packets:
+//! `i32` stream id, `i32` size, and a body (uncompressed, an LZ4 frame or a zstd frame) holding a
+//! size-prefixed FlatBuffer whose identifier names its type (`EVTS`, `IMUS`, `FRME`, `TRIG`).
+//!
+//! Read here: the first event stream (`EVTS`: 16-byte structs `t: i64 µs, x: i16, y: i16,
+//! on: bool`) with its `sizeX`/`sizeY`, and the first IMU stream (`IMUS`: tables with `t`,
+//! temperature, accelerometer (g), gyroscope (deg/s), magnetometer). Other streams are skipped.
+//! FlatBuffers are checked by the `flatbuffers` verifier before any field is read.
+
+use std::fs::File;
+use std::io::{BufReader, Read};
+use std::path::Path;
+
+use anyhow::{anyhow, bail, Context, Result};
+use flatbuffers::{
+    Follow, ForwardsUOffset, InvalidFlatbuffer, SimpleToVerifyInSlice, Table, Vector, Verifiable,
+    Verifier, VerifierOptions,
+};
+
+use super::{Format, GyroSample, HostEvent, Recording};
+
+const MAGIC: &[u8] = b"#!AER-DAT4.0\r\n";
+
+/// `IOHeader` table: compression (slot 4, i32), data table position (slot 6, i64, -1 = none),
+/// description XML (slot 8, string).
+struct IoHeader<'a>(Table<'a>);
+
+impl<'a> Follow<'a> for IoHeader<'a> {
+    type Inner = Self;
+    unsafe fn follow(buf: &'a [u8], loc: usize) -> Self {
+        // SAFETY: forwarded contract of `Follow::follow` (verified buffer).
+        Self(unsafe { Table::new(buf, loc) })
+    }
+}
+
+impl Verifiable for IoHeader<'_> {
+    fn run_verifier(v: &mut Verifier, pos: usize) -> Result<(), InvalidFlatbuffer> {
+        v.visit_table(pos)?
+            .visit_field::<i32>("compression", 4, false)?
+            .visit_field::<i64>("dataTablePosition", 6, false)?
+            .visit_field::<ForwardsUOffset<&str>>("infoNode", 8, false)?
+            .finish();
+        Ok(())
+    }
+}
+
+impl<'a> IoHeader<'a> {
+    fn compression(&self) -> i32 {
+        // SAFETY: the buffer was verified with `IoHeader::run_verifier`, slot 4 is an i32.
+        unsafe { self.0.get::<i32>(4, Some(0)) }.unwrap_or(0)
+    }
+    fn data_table_position(&self) -> i64 {
+        // SAFETY: verified, slot 6 is an i64.
+        unsafe { self.0.get::<i64>(6, Some(-1)) }.unwrap_or(-1)
+    }
+    fn info(&self) -> Option<&'a str> {
+        // SAFETY: verified, slot 8 is an offset to a UTF-8 string.
+        unsafe { self.0.get::<ForwardsUOffset<&str>>(8, None) }
+    }
+}
+
+/// One `Event` struct of an `EventPacket` (16 bytes: t i64, x i16, y i16, on bool, padding).
+#[derive(Clone, Copy)]
+#[repr(transparent)]
+struct RawEvent([u8; 16]);
+
+impl SimpleToVerifyInSlice for RawEvent {}
+
+impl<'a> Follow<'a> for RawEvent {
+    type Inner = Self;
+    unsafe fn follow(buf: &'a [u8], loc: usize) -> Self {
+        let mut b = [0u8; 16];
+        if let Some(s) = buf.get(loc..loc.saturating_add(16)) {
+            b.copy_from_slice(s);
+        }
+        Self(b)
+    }
+}
+
+/// `EventPacket` table: elements (slot 4, vector of `Event` structs).
+struct EventPacket<'a>(Table<'a>);
+
+impl<'a> Follow<'a> for EventPacket<'a> {
+    type Inner = Self;
+    unsafe fn follow(buf: &'a [u8], loc: usize) -> Self {
+        // SAFETY: forwarded contract of `Follow::follow` (verified buffer).
+        Self(unsafe { Table::new(buf, loc) })
+    }
+}
+
+impl Verifiable for EventPacket<'_> {
+    fn run_verifier(v: &mut Verifier, pos: usize) -> Result<(), InvalidFlatbuffer> {
+        v.visit_table(pos)?
+            .visit_field::<ForwardsUOffset<Vector<'_, RawEvent>>>("elements", 4, false)?
+            .finish();
+        Ok(())
+    }
+}
+
+impl<'a> EventPacket<'a> {
+    /// The raw bytes of the elements vector (a multiple of 16).
+    fn element_bytes(&self) -> &'a [u8] {
+        // SAFETY: verified, slot 4 is an offset to a vector of 16-byte structs.
+        unsafe { self.0.get::<ForwardsUOffset<Vector<'a, RawEvent>>>(4, None) }
+            .map_or(&[][..], |v| v.bytes())
+    }
+}
+
+/// `Imu` table: t (slot 4, i64 µs), temperature (6), accelerometer x/y/z (8, 10, 12, g),
+/// gyroscope x/y/z (14, 16, 18, deg/s), magnetometer x/y/z (20, 22, 24); floats are f32.
+struct Imu<'a>(Table<'a>);
+
+impl<'a> Follow<'a> for Imu<'a> {
+    type Inner = Self;
+    unsafe fn follow(buf: &'a [u8], loc: usize) -> Self {
+        // SAFETY: forwarded contract of `Follow::follow` (verified buffer).
+        Self(unsafe { Table::new(buf, loc) })
+    }
+}
+
+impl Verifiable for Imu<'_> {
+    fn run_verifier(v: &mut Verifier, pos: usize) -> Result<(), InvalidFlatbuffer> {
+        let mut t = v.visit_table(pos)?.visit_field::<i64>("t", 4, false)?;
+        for slot in (6..=24).step_by(2) {
+            t = t.visit_field::<f32>("float", slot, false)?;
+        }
+        t.finish();
+        Ok(())
+    }
+}
+
+impl Imu<'_> {
+    fn t(&self) -> i64 {
+        // SAFETY: verified, slot 4 is an i64.
+        unsafe { self.0.get::<i64>(4, Some(0)) }.unwrap_or(0)
+    }
+    fn f(&self, slot: u16) -> f32 {
+        // SAFETY: verified, slots 6..=24 are f32.
+        unsafe { self.0.get::<f32>(slot, Some(0.0)) }.unwrap_or(0.0)
+    }
+}
+
+/// `ImuPacket` table: elements (slot 4, vector of `Imu` tables).
+struct ImuPacket<'a>(Table<'a>);
+
+impl<'a> Follow<'a> for ImuPacket<'a> {
+    type Inner = Self;
+    unsafe fn follow(buf: &'a [u8], loc: usize) -> Self {
+        // SAFETY: forwarded contract of `Follow::follow` (verified buffer).
+        Self(unsafe { Table::new(buf, loc) })
+    }
+}
+
+impl Verifiable for ImuPacket<'_> {
+    fn run_verifier(v: &mut Verifier, pos: usize) -> Result<(), InvalidFlatbuffer> {
+        v.visit_table(pos)?
+            .visit_field::<ForwardsUOffset<Vector<'_, ForwardsUOffset<Imu<'_>>>>>(
+                "elements", 4, false,
+            )?
+            .finish();
+        Ok(())
+    }
+}
+
+impl<'a> ImuPacket<'a> {
+    fn elements(&self) -> Option<Vector<'a, ForwardsUOffset<Imu<'a>>>> {
+        // SAFETY: verified, slot 4 is an offset to a vector of offsets to `Imu` tables.
+        unsafe {
+            self.0
+                .get::<ForwardsUOffset<Vector<'a, ForwardsUOffset<Imu<'a>>>>>(4, None)
+        }
+    }
+}
+
+/// Stream kinds of the description.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    Events,
+    Imu,
+    Other,
+}
+
+struct Stream {
+    id: i32,
+    kind: Kind,
+    size: Option<(u16, u16)>,
+}
+
+/// Streams of the XML description: `<dv><node name="outInfo"><node name="ID">` with
+/// `typeIdentifier` and `<node name="info">` `sizeX`/`sizeY`.
+fn parse_streams(xml: &str) -> Result<Vec<Stream>, String> {
+    let doc = roxmltree::Document::parse(xml).map_err(|e| e.to_string())?;
+    let attr = |n: roxmltree::Node, key: &str| {
+        n.children()
+            .find(|c| c.has_tag_name("attr") && c.attribute("key") == Some(key))
+            .and_then(|c| c.text())
+            .map(|t| t.trim().to_owned())
+    };
+    let out_info = doc
+        .descendants()
+        .find(|n| n.has_tag_name("node") && n.attribute("name") == Some("outInfo"))
+        .ok_or("no `outInfo` node in the description")?;
+    let mut streams = Vec::new();
+    for node in out_info.children().filter(|n| n.has_tag_name("node")) {
+        let Some(id) = node.attribute("name").and_then(|s| s.parse::<i32>().ok()) else {
+            continue;
+        };
+        let identifier = attr(node, "typeIdentifier").unwrap_or_default();
+        let kind = match identifier.as_str() {
+            "EVTS" => Kind::Events,
+            "IMUS" => Kind::Imu,
+            _ => Kind::Other,
+        };
+        let info = node
+            .children()
+            .find(|n| n.has_tag_name("node") && n.attribute("name") == Some("info"));
+        let size = info.and_then(|i| {
+            let w = attr(i, "sizeX")?.parse::<u16>().ok()?;
+            let h = attr(i, "sizeY")?.parse::<u16>().ok()?;
+            Some((w, h))
+        });
+        streams.push(Stream { id, kind, size });
+    }
+    Ok(streams)
+}
+
+/// What [`parse`] collects.
+struct Parsed {
+    events: Vec<HostEvent>,
+    gyro: Vec<GyroSample>,
+    size: Option<(u16, u16)>,
+    has_imu: bool,
+}
+
+/// Reads exactly `buf.len()` bytes; `Ok(false)` at a clean end of file before the first byte.
+fn read_exact_or_eof(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while let Some(rest) = buf.get_mut(n..) {
+        if rest.is_empty() {
+            break;
+        }
+        match r.read(rest) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+fn opts() -> VerifierOptions {
+    VerifierOptions {
+        max_tables: usize::MAX,
+        max_apparent_size: usize::MAX,
+        ..VerifierOptions::default()
+    }
+}
+
+fn parse(path: &Path, want_events: bool, want_imu: bool) -> Result<Parsed> {
+    let p = path.display();
+    let file = File::open(path).with_context(|| format!("cannot open {p}"))?;
+    let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let mut r = BufReader::with_capacity(1 << 20, file);
+    let io = |e: std::io::Error| anyhow!("cannot read {p}: {e}");
+
+    let mut magic = [0u8; 14];
+    let n = read_exact_or_eof(&mut r, &mut magic).map_err(io)?;
+    if n < MAGIC.len() || magic != MAGIC {
+        bail!("{p}: not an AEDAT 4.0 file (no `#!AER-DAT4.0` line at byte 0)");
+    }
+    let mut len4 = [0u8; 4];
+    if read_exact_or_eof(&mut r, &mut len4).map_err(io)? < 4 {
+        bail!("{p}: truncated AEDAT 4.0 header at byte 14");
+    }
+    let header_len = u32::from_le_bytes(len4) as usize;
+    if header_len as u64 > file_len.saturating_sub(18) {
+        bail!("{p}: truncated AEDAT 4.0 header at byte 18: declares {header_len} bytes, the file has {}", file_len.saturating_sub(18));
+    }
+    // The header is a size-prefixed FlatBuffer starting at byte 14 (alignment counts from there).
+    let mut header = vec![0u8; header_len + 4];
+    header
+        .get_mut(..4)
+        .unwrap_or_default()
+        .copy_from_slice(&len4);
+    if read_exact_or_eof(&mut r, header.get_mut(4..).unwrap_or_default()).map_err(io)? < header_len
+    {
+        bail!("{p}: truncated AEDAT 4.0 header at byte 18");
+    }
+    let ioh = flatbuffers::size_prefixed_root_with_opts::<IoHeader>(&opts(), &header)
+        .map_err(|e| anyhow!("{p}: malformed AEDAT 4.0 header at byte 18: {e}"))?;
+    let compression = ioh.compression();
+    if !(0..=4).contains(&compression) {
+        bail!("{p}: unknown AEDAT 4.0 compression {compression} in the header at byte 18");
+    }
+    let table_pos = ioh.data_table_position();
+    let info = ioh.info().ok_or_else(|| {
+        anyhow!("{p}: malformed AEDAT 4.0 header at byte 18: no stream description")
+    })?;
+    let streams = parse_streams(info)
+        .map_err(|e| anyhow!("{p}: malformed AEDAT 4.0 stream description at byte 18: {e}"))?;
+    let ev_stream = streams.iter().find(|s| s.kind == Kind::Events);
+    let imu_stream = streams.iter().find(|s| s.kind == Kind::Imu);
+    let ev_id = ev_stream.map(|s| s.id);
+    let imu_id = imu_stream.map(|s| s.id);
+    if want_events && ev_id.is_none() {
+        bail!("{p}: the AEDAT 4.0 file has no event (EVTS) stream");
+    }
+    if want_imu && !want_events && imu_id.is_none() {
+        bail!("{p}: the AEDAT 4.0 file has no IMU (IMUS) stream");
+    }
+    let mut out = Parsed {
+        events: Vec::new(),
+        gyro: Vec::new(),
+        size: ev_stream.and_then(|s| s.size),
+        has_imu: imu_id.is_some(),
+    };
+
+    let mut pos: u64 = 18 + header_len as u64;
+    let mut body = Vec::new();
+    let mut plain = Vec::new();
+    loop {
+        if table_pos >= 0 && pos == table_pos as u64 {
+            break;
+        }
+        let mut ph = [0u8; 8];
+        let got = read_exact_or_eof(&mut r, &mut ph).map_err(io)?;
+        if got == 0 {
+            if table_pos >= 0 && (table_pos as u64) > pos {
+                bail!("{p}: truncated AEDAT 4.0 file at byte {pos}: the header announces the file data table at byte {table_pos}");
+            }
+            break;
+        }
+        if got < 8 {
+            bail!("{p}: truncated AEDAT 4.0 packet header at byte {pos}");
+        }
+        let [a, b, c, d, e, f, g, h] = ph;
+        let stream = i32::from_le_bytes([a, b, c, d]);
+        let size = i32::from_le_bytes([e, f, g, h]);
+        if size < 0 {
+            bail!("{p}: malformed AEDAT 4.0 packet at byte {pos}: negative size {size}");
+        }
+        let size = size as usize;
+        if pos + 8 + size as u64 > file_len {
+            bail!(
+                "{p}: truncated AEDAT 4.0 packet at byte {pos}: declares {size} bytes, the file has {} after its header",
+                file_len.saturating_sub(pos + 8)
+            );
+        }
+        if !streams.iter().any(|s| s.id == stream) {
+            bail!("{p}: malformed AEDAT 4.0 packet at byte {pos}: stream id {stream} is not in the file's description");
+        }
+        let wanted = (want_events && Some(stream) == ev_id) || (want_imu && Some(stream) == imu_id);
+        if !wanted {
+            std::io::copy(&mut (&mut r).take(size as u64), &mut std::io::sink()).map_err(io)?;
+            pos += 8 + size as u64;
+            continue;
+        }
+        body.resize(size, 0);
+        if read_exact_or_eof(&mut r, &mut body).map_err(io)? < size {
+            bail!("{p}: truncated AEDAT 4.0 packet at byte {pos}");
+        }
+        let data: &[u8] = match compression {
+            0 => &body,
+            1 | 2 => {
+                plain.clear();
+                lz4_flex::frame::FrameDecoder::new(&body[..])
+                    .read_to_end(&mut plain)
+                    .map_err(|e| anyhow!("{p}: corrupt LZ4 packet at byte {pos}: {e}"))?;
+                &plain
+            }
+            _ => {
+                plain.clear();
+                zstd::stream::copy_decode(&body[..], &mut plain)
+                    .map_err(|e| anyhow!("{p}: corrupt zstd packet at byte {pos}: {e}"))?;
+                &plain
+            }
+        };
+        let bad = |e: &dyn std::fmt::Display| {
+            anyhow!("{p}: malformed AEDAT 4.0 packet at byte {pos}: {e}")
+        };
+        if Some(stream) == ev_id {
+            if !flatbuffers::buffer_has_identifier(data, "EVTS", true) {
+                return Err(bad(&"stream says events, packet is not EVTS"));
+            }
+            let pkt = flatbuffers::size_prefixed_root_with_opts::<EventPacket>(&opts(), data)
+                .map_err(|e| bad(&e))?;
+            let (chunks, _) = pkt.element_bytes().as_chunks::<16>();
+            out.events.reserve(chunks.len());
+            for ev in chunks {
+                let [t0, t1, t2, t3, t4, t5, t6, t7, x0, x1, y0, y1, on, ..] = *ev;
+                let t = i64::from_le_bytes([t0, t1, t2, t3, t4, t5, t6, t7]);
+                let x = i16::from_le_bytes([x0, x1]);
+                let y = i16::from_le_bytes([y0, y1]);
+                let (Ok(t_us), Ok(x), Ok(y)) =
+                    (u64::try_from(t), u16::try_from(x), u16::try_from(y))
+                else {
+                    return Err(bad(&format!(
+                        "event with negative time or address (t = {t}, x = {x}, y = {y})"
+                    )));
+                };
+                out.events.push(HostEvent {
+                    t_us,
+                    x,
+                    y,
+                    on: on != 0,
+                });
+            }
+        } else {
+            if !flatbuffers::buffer_has_identifier(data, "IMUS", true) {
+                return Err(bad(&"stream says IMU, packet is not IMUS"));
+            }
+            let pkt = flatbuffers::size_prefixed_root_with_opts::<ImuPacket>(&opts(), data)
+                .map_err(|e| bad(&e))?;
+            for imu in pkt.elements().iter().flat_map(|v| v.iter()) {
+                out.gyro.push(GyroSample {
+                    t_s: imu.t() as f64 * 1e-6,
+                    wx: f64::from(imu.f(14)).to_radians(),
+                    wy: f64::from(imu.f(16)).to_radians(),
+                    wz: f64::from(imu.f(18)).to_radians(),
+                });
+            }
+        }
+        pos += 8 + size as u64;
+    }
+    Ok(out)
+}
+
+/// Reads the events, sensor size and IMU (as gyro, rad/s) of an AEDAT 4.0 file.
+pub(super) fn read(path: &Path) -> Result<Recording> {
+    let parsed = parse(path, true, true)?;
+    Ok(Recording {
+        events: parsed.events,
+        width: parsed.size.map(|s| s.0),
+        height: parsed.size.map(|s| s.1),
+        intrinsics: None,
+        gyro: parsed.has_imu.then_some(parsed.gyro),
+        format: Format::Aedat4,
+    })
+}
+
+/// Reads the IMU stream of an AEDAT 4.0 file as gyro samples (deg/s converted to rad/s).
+pub(super) fn read_gyro(path: &Path) -> Result<Vec<GyroSample>> {
+    Ok(parse(path, false, true)?.gyro)
+}

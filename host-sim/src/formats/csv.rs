@@ -1,0 +1,198 @@
+//! CSV: events `t_us,x,y,p`, this project's ground truth `t_s,wx,wy,wz,...` and the AEDAT4 IMU
+//! reference decode (`t_us,...,gyroscope_x,gyroscope_y,gyroscope_z,...` in deg/s).
+
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::{anyhow, bail, Context, Result};
+
+use super::text::{self, csv_fields, line_error, Lines};
+use super::{Format, GtSample, GyroSample, HostEvent, Recording};
+
+/// The header line written by [`write_csv`], identical to the reference decodes'.
+pub const CSV_HEADER: &str = "t_us,x,y,p";
+
+/// Reads `t_us,x,y,p` events (header line optional, `#` comments and blank lines skipped).
+pub(super) fn read_events(path: &Path) -> Result<Recording> {
+    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut events = Vec::with_capacity(buf.len() / 24);
+    let mut first = true;
+    for (line_no, (off, line)) in Lines::new(&buf).enumerate() {
+        if text::is_blank_or_comment(line) {
+            continue;
+        }
+        let is_first = std::mem::replace(&mut first, false);
+        let mut f = csv_fields(line);
+        let parsed = (|| {
+            let t_us = text::parse_u64(f.next()?)?;
+            let x = text::parse_u16(f.next()?)?;
+            let y = text::parse_u16(f.next()?)?;
+            let on = text::parse_polarity(f.next()?)?;
+            f.next().is_none().then_some(HostEvent { t_us, x, y, on })
+        })();
+        match parsed {
+            Some(e) => events.push(e),
+            None if is_first && line.first().is_some_and(u8::is_ascii_alphabetic) => {}
+            None => {
+                return Err(line_error(
+                    path,
+                    &buf,
+                    off,
+                    line_no + 1,
+                    line,
+                    "`t_us,x,y,p` (integers, p = 0 or 1)",
+                ));
+            }
+        }
+    }
+    Ok(Recording {
+        events,
+        width: None,
+        height: None,
+        intrinsics: None,
+        gyro: None,
+        format: Format::Csv,
+    })
+}
+
+/// Writes events as `t_us,x,y,p` with a header line, one line per event in the given order,
+/// `p` = 1 for ON and 0 for OFF, `\n` line ends: the layout of the reference decodes in
+/// `shared/data/real`. The file appears complete or not at all (temporary file, then rename).
+///
+/// # Errors
+/// When the file cannot be written.
+pub fn write_csv(events: &[HostEvent], out: &Path) -> Result<()> {
+    crate::output::write_atomically(out, |w| {
+        let mut line = Vec::with_capacity(64 * 1024);
+        line.extend_from_slice(CSV_HEADER.as_bytes());
+        line.push(b'\n');
+        for e in events {
+            push_u64(&mut line, e.t_us);
+            line.push(b',');
+            push_u64(&mut line, u64::from(e.x));
+            line.push(b',');
+            push_u64(&mut line, u64::from(e.y));
+            line.extend_from_slice(if e.on { b",1\n" } else { b",0\n" });
+            if line.len() >= 60 * 1024 {
+                w.write_all(&line)
+                    .with_context(|| format!("cannot write {}", out.display()))?;
+                line.clear();
+            }
+        }
+        w.write_all(&line)
+            .with_context(|| format!("cannot write {}", out.display()))?;
+        Ok(())
+    })
+}
+
+/// Appends the decimal digits of `v`.
+fn push_u64(out: &mut Vec<u8>, mut v: u64) {
+    let mut digits = [0u8; 20];
+    let mut n = 0;
+    loop {
+        if let Some(d) = digits.get_mut(n) {
+            *d = b'0' + (v % 10) as u8;
+        }
+        n += 1;
+        v /= 10;
+        if v == 0 {
+            break;
+        }
+    }
+    out.extend(digits.iter().take(n).rev());
+}
+
+/// Column index of `name` in a header.
+fn column(names: &[String], name: &str) -> Option<usize> {
+    names.iter().position(|n| n == name)
+}
+
+/// Reads this project's `gt.csv`: yaw rate = `wy` (camera y axis, down; positive = turning
+/// right).
+pub(super) fn read_gt(path: &Path) -> Result<Vec<GtSample>> {
+    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut lines = Lines::new(&buf)
+        .enumerate()
+        .filter(|(_, (_, l))| !text::is_blank_or_comment(l));
+    let (_, (_, header)) = lines
+        .next()
+        .ok_or_else(|| anyhow!("{}: empty file", path.display()))?;
+    let names: Vec<String> = csv_fields(header)
+        .map(|f| String::from_utf8_lossy(f).to_ascii_lowercase())
+        .collect();
+    let (Some(it), Some(iw)) = (column(&names, "t_s"), column(&names, "wy")) else {
+        bail!("{}: header has no `t_s` and `wy` columns", path.display());
+    };
+    let mut out = Vec::new();
+    for (line_no, (off, line)) in lines {
+        let fields: Vec<&[u8]> = csv_fields(line).collect();
+        let get = |i: usize| fields.get(i).and_then(|f| text::parse_f64(f));
+        match (get(it), get(iw)) {
+            (Some(t_s), Some(wy)) => out.push(GtSample {
+                t_s,
+                yaw_rate_rad_s: wy,
+            }),
+            _ => {
+                return Err(line_error(
+                    path,
+                    &buf,
+                    off,
+                    line_no + 1,
+                    line,
+                    "numbers in the `t_s` and `wy` columns",
+                ))
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Reads an IMU CSV with `t_us` and `gyroscope_x/y/z` (deg/s) columns.
+pub(super) fn read_imu_csv(path: &Path) -> Result<Vec<GyroSample>> {
+    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut lines = Lines::new(&buf)
+        .enumerate()
+        .filter(|(_, (_, l))| !text::is_blank_or_comment(l));
+    let (_, (_, header)) = lines
+        .next()
+        .ok_or_else(|| anyhow!("{}: empty file", path.display()))?;
+    let names: Vec<String> = csv_fields(header)
+        .map(|f| String::from_utf8_lossy(f).to_ascii_lowercase())
+        .collect();
+    let cols = [
+        column(&names, "t_us"),
+        column(&names, "gyroscope_x"),
+        column(&names, "gyroscope_y"),
+        column(&names, "gyroscope_z"),
+    ];
+    let [Some(it), Some(ix), Some(iy), Some(iz)] = cols else {
+        bail!(
+            "{}: header has no `t_us` and `gyroscope_x/y/z` columns",
+            path.display()
+        );
+    };
+    let mut out = Vec::new();
+    for (line_no, (off, line)) in lines {
+        let fields: Vec<&[u8]> = csv_fields(line).collect();
+        let get = |i: usize| fields.get(i).and_then(|f| text::parse_f64(f));
+        match (get(it), get(ix), get(iy), get(iz)) {
+            (Some(t), Some(x), Some(y), Some(z)) => out.push(GyroSample {
+                t_s: t * 1e-6,
+                wx: x.to_radians(),
+                wy: y.to_radians(),
+                wz: z.to_radians(),
+            }),
+            _ => {
+                return Err(line_error(
+                    path,
+                    &buf,
+                    off,
+                    line_no + 1,
+                    line,
+                    "numbers in the t_us and gyroscope columns",
+                ))
+            }
+        }
+    }
+    Ok(out)
+}

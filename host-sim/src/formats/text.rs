@@ -1,0 +1,251 @@
+//! Shared helpers for the text formats: classification from the first line, a line iterator
+//! that knows byte offsets, and exact number parsing.
+
+use std::path::Path;
+
+use anyhow::{anyhow, Error};
+
+/// What the first meaningful line of a text file looks like.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// `t_us,x,y,p` header or 4 numeric comma-separated fields.
+    EventsCsv,
+    /// 4 numeric whitespace-separated fields (`t x y p`).
+    EventsText,
+    /// `t_s,...,wy,...` header (this project's ground truth).
+    GtCsv,
+    /// 7 numeric whitespace-separated fields (`t ax ay az gx gy gz`).
+    ImuText,
+    /// 8 numeric whitespace-separated fields (`t px py pz qx qy qz qw`).
+    PoseText,
+    /// A CSV header with `gyroscope_x` (AEDAT4 IMU reference decode).
+    ImuCsv,
+    /// Anything else.
+    Unknown,
+}
+
+/// Classifies a text file from its first bytes.
+pub fn classify(head: &[u8]) -> Kind {
+    let Some((_, line)) = Lines::new(head).find(|(_, l)| !is_blank_or_comment(l)) else {
+        return Kind::Unknown;
+    };
+    let Ok(line) = std::str::from_utf8(line) else {
+        return Kind::Unknown;
+    };
+    if line.contains(',') {
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.iter().all(|f| f.parse::<f64>().is_ok()) {
+            return if fields.len() == 4 {
+                Kind::EventsCsv
+            } else {
+                Kind::Unknown
+            };
+        }
+        let names: Vec<String> = fields.iter().map(|f| f.to_ascii_lowercase()).collect();
+        let has = |n: &str| names.iter().any(|f| f == n);
+        if names
+            .first()
+            .is_some_and(|f| f == "t_us" || f == "t" || f == "timestamp")
+            && has("x")
+            && has("y")
+            && (has("p") || has("polarity"))
+        {
+            return Kind::EventsCsv;
+        }
+        if names.first().is_some_and(|f| f == "t_s") && has("wy") {
+            return Kind::GtCsv;
+        }
+        if has("gyroscope_x") && has("gyroscope_y") && has("gyroscope_z") {
+            return Kind::ImuCsv;
+        }
+        return Kind::Unknown;
+    }
+    let fields: Vec<&str> = line.split_ascii_whitespace().collect();
+    if !fields.iter().all(|f| f.parse::<f64>().is_ok()) {
+        return Kind::Unknown;
+    }
+    match fields.len() {
+        4 => Kind::EventsText,
+        7 => Kind::ImuText,
+        8 => Kind::PoseText,
+        _ => Kind::Unknown,
+    }
+}
+
+/// Whether a line is empty, whitespace or a `#` comment.
+pub fn is_blank_or_comment(line: &[u8]) -> bool {
+    match line.iter().position(|b| !b.is_ascii_whitespace()) {
+        None => true,
+        Some(i) => line.get(i) == Some(&b'#'),
+    }
+}
+
+/// Lines of a byte buffer with the byte offset of each line's start; `\r\n` endings accepted.
+pub struct Lines<'a> {
+    buf: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Lines<'a> {
+    pub fn new(buf: &'a [u8]) -> Self {
+        Self { buf, pos: 0 }
+    }
+}
+
+impl<'a> Iterator for Lines<'a> {
+    type Item = (usize, &'a [u8]);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let rest = self.buf.get(self.pos..)?;
+        if rest.is_empty() {
+            return None;
+        }
+        let start = self.pos;
+        let (line, advance) = match rest.iter().position(|&b| b == b'\n') {
+            Some(i) => (rest.get(..i).unwrap_or_default(), i + 1),
+            None => (rest, rest.len()),
+        };
+        self.pos += advance;
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        Some((start, line))
+    }
+}
+
+/// Splits a line on ASCII whitespace.
+pub fn ws_fields(line: &[u8]) -> impl Iterator<Item = &[u8]> {
+    line.split(|b| *b == b' ' || *b == b'\t')
+        .filter(|f| !f.is_empty())
+}
+
+/// Splits a line on commas, trimming spaces.
+pub fn csv_fields(line: &[u8]) -> impl Iterator<Item = &[u8]> {
+    line.split(|b| *b == b',').map(|f| f.trim_ascii())
+}
+
+/// An unsigned decimal integer (no sign, no spaces).
+pub fn parse_u64(s: &[u8]) -> Option<u64> {
+    if s.is_empty() || s.len() > 20 {
+        return None;
+    }
+    let mut v: u64 = 0;
+    for &b in s {
+        let d = b.wrapping_sub(b'0');
+        if d > 9 {
+            return None;
+        }
+        v = v.checked_mul(10)?.checked_add(u64::from(d))?;
+    }
+    Some(v)
+}
+
+/// A pixel coordinate (`0 ..= 65535`; a trailing `.0` is accepted).
+pub fn parse_u16(s: &[u8]) -> Option<u16> {
+    let s = s.strip_suffix(b".0").unwrap_or(s);
+    parse_u64(s).and_then(|v| u16::try_from(v).ok())
+}
+
+/// A polarity: `1`/`+1`/`1.0`/`true` = ON, `0`/`-1`/`0.0`/`-1.0`/`false` = OFF.
+pub fn parse_polarity(s: &[u8]) -> Option<bool> {
+    match s {
+        b"1" | b"+1" | b"1.0" | b"true" | b"True" => Some(true),
+        b"0" | b"-1" | b"0.0" | b"-1.0" | b"false" | b"False" => Some(false),
+        _ => None,
+    }
+}
+
+/// A float.
+pub fn parse_f64(s: &[u8]) -> Option<f64> {
+    std::str::from_utf8(s)
+        .ok()?
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+}
+
+/// Non-negative seconds to µs: exact for plain decimals (digits beyond the 6th decimal round
+/// half up), else through `f64` rounded to the nearest µs.
+pub fn parse_seconds_us(s: &[u8]) -> Option<u64> {
+    let (int, frac) = match s.iter().position(|&b| b == b'.') {
+        Some(i) => (s.get(..i)?, s.get(i + 1..)?),
+        None => (s, &b""[..]),
+    };
+    let plain = frac.iter().all(u8::is_ascii_digit) && int.iter().all(u8::is_ascii_digit);
+    if plain && !(int.is_empty() && frac.is_empty()) {
+        let whole = if int.is_empty() { 0 } else { parse_u64(int)? };
+        let mut us: u64 = 0;
+        for i in 0..6 {
+            let d = frac.get(i).map_or(0, |b| u64::from(b - b'0'));
+            us = us * 10 + d;
+        }
+        let round_up = frac.get(6).is_some_and(|&b| b >= b'5');
+        return whole
+            .checked_mul(1_000_000)?
+            .checked_add(us + u64::from(round_up));
+    }
+    let v = parse_f64(s)?;
+    seconds_to_us(v)
+}
+
+/// Non-negative finite seconds to µs, rounded to the nearest µs.
+pub fn seconds_to_us(v: f64) -> Option<u64> {
+    if v.is_nan() || v < 0.0 || !v.is_finite() {
+        return None;
+    }
+    let us = (v * 1e6).round();
+    if us >= 1.8e19 {
+        return None;
+    }
+    Some(us as u64)
+}
+
+/// Error for a malformed line: names the file, the line number (1-based) and its byte offset;
+/// a last line without its newline is reported as truncated.
+pub fn line_error(
+    path: &Path,
+    buf: &[u8],
+    offset: usize,
+    line_no: usize,
+    line: &[u8],
+    expected: &str,
+) -> Error {
+    let shown: String = String::from_utf8_lossy(line).chars().take(60).collect();
+    let last = offset.saturating_add(line.len()) >= buf.len() && !buf.ends_with(b"\n");
+    let what = if last { "truncated" } else { "malformed" };
+    anyhow!(
+        "{}: {what} line {line_no} at byte {offset}: expected {expected}, found `{shown}`",
+        path.display()
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seconds_exact() {
+        assert_eq!(parse_seconds_us(b"0.000204"), Some(204));
+        assert_eq!(parse_seconds_us(b"1.5"), Some(1_500_000));
+        assert_eq!(parse_seconds_us(b"12"), Some(12_000_000));
+        assert_eq!(parse_seconds_us(b"0.0000005"), Some(1));
+        assert_eq!(parse_seconds_us(b"0.0000004999"), Some(0));
+        assert_eq!(
+            parse_seconds_us(b"1403636579.758555"),
+            Some(1_403_636_579_758_555)
+        );
+        assert_eq!(parse_seconds_us(b"2.04e-4"), Some(204));
+        assert_eq!(parse_seconds_us(b"-1"), None);
+        assert_eq!(parse_seconds_us(b"."), None);
+        assert_eq!(parse_seconds_us(b"abc"), None);
+    }
+
+    #[test]
+    fn classify_lines() {
+        assert_eq!(classify(b"t_us,x,y,p\n1,2,3,1\n"), Kind::EventsCsv);
+        assert_eq!(classify(b"1,2,3,1\n"), Kind::EventsCsv);
+        assert_eq!(classify(b"0.000204 283 244 1\n"), Kind::EventsText);
+        assert_eq!(classify(b"t_s,wx,wy,wz,yaw_rad\n"), Kind::GtCsv);
+        assert_eq!(classify(b"0.0 1 2 3 4 5 6\n"), Kind::ImuText);
+        assert_eq!(classify(b"0.0 1 2 3 0 0 0 1\n"), Kind::PoseText);
+        assert_eq!(classify(b"\x00\x01binary"), Kind::Unknown);
+    }
+}

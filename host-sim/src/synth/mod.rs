@@ -1,0 +1,529 @@
+//! Synthetic event-camera sequences with ground truth (`host-sim synth`).
+//!
+//! An ESIM-style simulator: a textured scene (a cylindrical panorama at infinity, optionally a
+//! textured ground plane) seen by a pinhole camera that rotates (and optionally drives forward)
+//! along an analytic [`MotionSpec`]. The log-intensity image is rendered at adaptively chosen
+//! times so that no pixel changes by more than `max_change` x the mean threshold between two
+//! renders; each pixel's threshold crossings are interpolated linearly between renders, which
+//! gives µs-accurate timestamps. Seeded with ChaCha streams: the same [`SynthConfig`] always
+//! yields the same events, whatever the number of render threads.
+//!
+//! Library use: [`generate`] returns a [`Sequence`] in memory (events, ground truth, IMU,
+//! intrinsics); [`write_sequence`] writes the folder layout of `../shared/data/synthetic`.
+
+pub mod camera;
+pub mod motion;
+pub mod output;
+pub mod rng;
+pub mod scene;
+pub mod sensor;
+pub mod texture;
+pub mod truth;
+
+use serde::{Deserialize, Serialize};
+
+pub use camera::{Intrinsics, Preset};
+pub use motion::{MotionKind, MotionSpec, YawTerm};
+pub use output::write_sequence;
+pub use sensor::SensorParams;
+pub use texture::TextureKind;
+pub use truth::{GtRow, ImuParams, ImuRow};
+
+use motion::Trajectory;
+use scene::{CameraPose, Ground, Panorama, Renderer, Scene};
+use sensor::{RawEvent, Sensor};
+
+/// Generator name and version written to `meta.json`.
+pub const GENERATOR: &str = concat!("host-sim synth ", env!("CARGO_PKG_VERSION"));
+
+/// The events of a sequence: `t_us` from the start of the sequence, pixel, polarity (the
+/// host's event type, as read from files).
+pub use crate::formats::HostEvent as Event;
+
+/// Everything that defines a sequence. Defaults: DAVIS346, urban texture, sinusoidal yaw, 4 s,
+/// seed 1.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SynthConfig {
+    /// Sequence name (written to `meta.json`).
+    pub name: String,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// Sensor preset the intrinsics came from (informative once `intrinsics` is set).
+    pub preset: Preset,
+    /// Camera intrinsics.
+    pub intrinsics: Intrinsics,
+    /// Panorama texture.
+    pub texture: TextureKind,
+    /// Log-contrast multiplier of all textures (1 = nominal).
+    pub contrast: f64,
+    /// Panorama texels per pixel at the image centre.
+    pub tex_res: f64,
+    /// Gaussian pre-blur of the textures, texels (std).
+    pub blur_texels: f64,
+    /// Motion profile (its parameters are drawn from the seed unless `motion_spec` is set).
+    pub motion: MotionKind,
+    /// An explicit motion that overrides `motion`, `max_rate`, `speed_mps`, `pitch_roll_rad`.
+    pub motion_spec: Option<MotionSpec>,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Peak |yaw rate| of the profile, rad/s.
+    pub max_rate: f64,
+    /// Mean forward speed, m/s.
+    pub speed_mps: f64,
+    /// Amplitude of the pitch and roll oscillations, rad.
+    pub pitch_roll_rad: f64,
+    /// Whether the scene has a ground plane (needed for translation flow).
+    pub ground: bool,
+    /// Camera height above the ground plane, m.
+    pub cam_height_m: f64,
+    /// Pixel model.
+    pub sensor: SensorParams,
+    /// Largest allowed change of any pixel between two renders, as a fraction of the smaller of
+    /// the mean ON/OFF thresholds.
+    pub max_change: f64,
+    /// Smallest render step, s.
+    pub dt_min_s: f64,
+    /// Largest render step, s.
+    pub dt_max_s: f64,
+    /// Ground-truth rate, Hz.
+    pub gt_rate_hz: f64,
+    /// IMU model.
+    pub imu: ImuParams,
+    /// Render threads (0 = all available, at most 4). Does not change the output.
+    pub threads: usize,
+}
+
+impl Default for SynthConfig {
+    fn default() -> Self {
+        Self::new(Preset::Davis346, TextureKind::Urban, MotionKind::Sinusoid)
+    }
+}
+
+impl SynthConfig {
+    /// The defaults for a preset, texture and motion profile (the profile's default peak rate,
+    /// speed, pitch/roll, and a ground plane when it drives).
+    pub fn new(preset: Preset, texture: TextureKind, motion: MotionKind) -> Self {
+        let speed = motion.default_speed();
+        Self {
+            name: format!("{}_{}_{}", preset.name(), texture.name(), motion.name()),
+            seed: 1,
+            preset,
+            intrinsics: preset.intrinsics(),
+            texture,
+            contrast: 1.0,
+            tex_res: 1.0,
+            blur_texels: 0.8,
+            motion,
+            motion_spec: None,
+            duration_s: 4.0,
+            max_rate: motion.default_max_rate(),
+            speed_mps: speed,
+            pitch_roll_rad: motion.default_pitch_roll(),
+            ground: speed > 0.0,
+            cam_height_m: 1.4,
+            sensor: SensorParams::default(),
+            max_change: 1.0 / 3.0,
+            dt_min_s: 5e-6,
+            dt_max_s: 2e-3,
+            gt_rate_hz: 1000.0,
+            imu: ImuParams::default(),
+            threads: 0,
+        }
+    }
+
+    /// The motion this configuration produces (explicit, or drawn from the seed).
+    pub fn resolve_motion(&self) -> MotionSpec {
+        match &self.motion_spec {
+            Some(m) => m.clone(),
+            None => {
+                let mut r = rng::stream(self.seed, rng::Stream::Motion);
+                MotionSpec::random(
+                    self.motion,
+                    &mut r,
+                    self.duration_s,
+                    self.max_rate,
+                    self.speed_mps,
+                    self.pitch_roll_rad,
+                )
+            }
+        }
+    }
+
+    /// Checks the parameters; an error names the first bad one.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        use anyhow::ensure;
+        let i = &self.intrinsics;
+        ensure!(
+            i.width >= 2 && i.height >= 2,
+            "sensor must be at least 2 x 2 pixels"
+        );
+        ensure!(i.fx > 0.0 && i.fy > 0.0, "focal length must be positive");
+        ensure!(
+            self.duration_s > 0.0 && self.duration_s.is_finite(),
+            "duration must be > 0"
+        );
+        ensure!(self.contrast >= 0.0, "contrast must be >= 0");
+        ensure!(self.tex_res > 0.0, "tex_res must be > 0");
+        ensure!(
+            self.sensor.cp > 0.0 && self.sensor.cm > 0.0 && self.sensor.c_min > 0.0,
+            "contrast thresholds must be > 0"
+        );
+        ensure!(self.sensor.noise_hz >= 0.0, "noise rate must be >= 0");
+        ensure!(
+            self.max_change > 0.0 && self.dt_min_s > 0.0 && self.dt_max_s >= self.dt_min_s,
+            "bad time-step limits"
+        );
+        ensure!(
+            self.gt_rate_hz > 0.0 && self.imu.rate_hz > 0.0,
+            "rates must be > 0"
+        );
+        ensure!(self.cam_height_m > 0.0, "camera height must be > 0");
+        Ok(())
+    }
+
+    fn thread_count(&self) -> usize {
+        if self.threads > 0 {
+            self.threads
+        } else {
+            std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1)
+                .min(4)
+        }
+    }
+}
+
+/// Counters and rates of a generated sequence (written to `meta.json` under `stats`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Stats {
+    /// Total events.
+    pub events: u64,
+    /// Threshold-crossing events.
+    pub signal_events: u64,
+    /// Background-activity and hot-pixel events.
+    pub noise_events: u64,
+    /// Crossings dropped by the refractory period.
+    pub refractory_drops: u64,
+    /// Pixel-steps with more than one crossing.
+    pub multi_crossing_events: u64,
+    /// Fraction of ON events.
+    pub on_fraction: f64,
+    /// Events per second over the whole sequence.
+    pub mean_rate_ev_s: f64,
+    /// Largest event rate over a 10 ms bin, events/s.
+    pub peak_rate_ev_s_10ms: f64,
+    /// Accepted renders.
+    pub renders: u64,
+    /// Renders rejected because some pixel changed by more than the limit.
+    pub rejected_renders: u64,
+    /// Steps accepted at `dt_min` although the limit was exceeded.
+    pub dt_min_hits: u64,
+    /// Smallest accepted render step, s.
+    pub render_dt_min_s: f64,
+    /// Largest accepted render step, s.
+    pub render_dt_max_s: f64,
+    /// max |wy| of the ground truth, rad/s.
+    pub max_abs_wy_rad_s: f64,
+    /// mean |wy| of the ground truth, rad/s.
+    pub mean_abs_wy_rad_s: f64,
+}
+
+/// A generated sequence.
+#[derive(Clone, Debug)]
+pub struct Sequence {
+    /// The configuration it was generated from.
+    pub config: SynthConfig,
+    /// Camera intrinsics.
+    pub intrinsics: Intrinsics,
+    /// The motion actually used.
+    pub motion: MotionSpec,
+    /// Events, sorted by time (ties by row, then column).
+    pub events: Vec<Event>,
+    /// Ground truth at `config.gt_rate_hz`.
+    pub gt: Vec<GtRow>,
+    /// Simulated IMU at `config.imu.rate_hz`.
+    pub imu: Vec<ImuRow>,
+    /// Counters.
+    pub stats: Stats,
+    /// Everything for `meta.json`.
+    pub meta: serde_json::Value,
+}
+
+impl Sequence {
+    /// Ground-truth yaw rate `(t_s, wy rad/s)`.
+    pub fn gt_yaw_rate(&self) -> Vec<(f64, f64)> {
+        self.gt.iter().map(|g| (g.t_s, g.w[1])).collect()
+    }
+
+    /// Gyro yaw rate `(t_s, gy rad/s)` (with bias and noise).
+    pub fn gyro_yaw_rate(&self) -> Vec<(f64, f64)> {
+        self.imu.iter().map(|r| (r.t_s, r.gyro[1])).collect()
+    }
+}
+
+/// Generates the sequence described by `cfg`.
+pub fn generate(cfg: &SynthConfig) -> anyhow::Result<Sequence> {
+    generate_with_progress(cfg, &mut |_| {})
+}
+
+/// Like [`generate`], calling `progress(t_s)` after each render step (`t_s` = simulated time
+/// reached, up to `cfg.duration_s`).
+pub fn generate_with_progress(
+    cfg: &SynthConfig,
+    progress: &mut dyn FnMut(f64),
+) -> anyhow::Result<Sequence> {
+    cfg.validate()?;
+    let intr = cfg.intrinsics;
+    let motion = cfg.resolve_motion();
+    let (scene, scene_meta) = build_scene(cfg, &motion);
+    let renderer = Renderer::new(&intr, scene, cfg.thread_count());
+    let trajectory =
+        (motion.speed.mean_mps > 0.0).then(|| Trajectory::new(&motion, cfg.duration_s));
+    let pure_yaw = motion.is_pure_yaw();
+    let pose_at = |t: f64| CameraPose {
+        rot: motion.rotation(t),
+        heading: motion.heading(t),
+        pos: trajectory.as_ref().map_or([0.0; 3], |tr| tr.position(t)),
+        pure_yaw,
+    };
+
+    let n = intr.pixels();
+    let h = usize::from(intr.height);
+    let mut cur = vec![0.0f32; n];
+    let mut next = vec![0.0f32; n];
+    renderer.render(&pose_at(0.0), &mut cur);
+    let mut mismatch_rng = rng::stream(cfg.seed, rng::Stream::Sensor);
+    let noise_rng = rng::stream(cfg.seed, rng::Stream::Noise);
+    let mut sensor = Sensor::new(&cfg.sensor, &cur, &mut mismatch_rng, noise_rng);
+    let (cp_mean, cm_mean) = sensor.mean_thresholds();
+    let target = (cfg.max_change * cp_mean.min(cm_mean)) as f32;
+
+    let mut stats = Stats {
+        render_dt_min_s: f64::INFINITY,
+        ..Stats::default()
+    };
+    let mut events: Vec<Event> = Vec::new();
+    let mut batch: Vec<RawEvent> = Vec::new();
+    let to_event = |r: &RawEvent| Event {
+        t_us: r.t_us,
+        x: (r.pixel as usize / h) as u16,
+        y: (r.pixel as usize % h) as u16,
+        on: r.on,
+    };
+    let t_end = cfg.duration_s;
+    let mut t = 0.0;
+    let mut dt = cfg.dt_max_s.min(1e-3);
+    while t < t_end {
+        let step = dt.clamp(cfg.dt_min_s, cfg.dt_max_s);
+        let (t1, last) = if t + step >= t_end - 1e-9 {
+            (t_end, true)
+        } else {
+            (t + step, false)
+        };
+        let step = t1 - t;
+        renderer.render(&pose_at(t1), &mut next);
+        let change = max_abs_diff(&cur, &next);
+        if change > target && step > cfg.dt_min_s * 1.000_001 {
+            stats.rejected_renders += 1;
+            dt = (step * f64::from(0.8 * target / change)).max(cfg.dt_min_s);
+            continue;
+        }
+        if change > target {
+            stats.dt_min_hits += 1;
+        }
+        batch.clear();
+        sensor.step(t, t1, &cur, &next, &mut batch);
+        sensor.noise(t1, &mut batch);
+        batch.sort_unstable_by_key(|e| (e.t_us, e.pixel % h as u32, e.pixel / h as u32, e.on));
+        events.extend(batch.iter().map(to_event));
+        std::mem::swap(&mut cur, &mut next);
+        stats.renders += 1;
+        if !last {
+            stats.render_dt_min_s = stats.render_dt_min_s.min(step);
+        }
+        stats.render_dt_max_s = stats.render_dt_max_s.max(step);
+        let grow = if change > 0.0 {
+            f64::from(0.8 * target / change).clamp(0.5, 2.0)
+        } else {
+            2.0
+        };
+        dt = step * grow;
+        t = t1;
+        progress(t);
+    }
+    if !stats.render_dt_min_s.is_finite() {
+        stats.render_dt_min_s = stats.render_dt_max_s;
+    }
+
+    let gt = truth::ground_truth(&motion, cfg.duration_s, cfg.gt_rate_hz);
+    let mut imu_rng = rng::stream(cfg.seed, rng::Stream::Imu);
+    let (imu, gyro_bias, acc_bias) = truth::imu(&motion, cfg.duration_s, &cfg.imu, &mut imu_rng);
+
+    let s = &sensor.stats;
+    stats.events = events.len() as u64;
+    stats.signal_events = s.signal_events;
+    stats.noise_events = s.noise_events;
+    stats.refractory_drops = s.refractory_drops;
+    stats.multi_crossing_events = s.multi_crossing_events;
+    stats.on_fraction = events.iter().filter(|e| e.on).count() as f64 / events.len().max(1) as f64;
+    stats.mean_rate_ev_s = events.len() as f64 / cfg.duration_s;
+    stats.peak_rate_ev_s_10ms = peak_rate(&events, 10_000);
+    stats.max_abs_wy_rad_s = gt.iter().map(|g| g.w[1].abs()).fold(0.0, f64::max);
+    stats.mean_abs_wy_rad_s = gt.iter().map(|g| g.w[1].abs()).sum::<f64>() / gt.len().max(1) as f64;
+
+    let hot: Vec<[u32; 2]> = sensor
+        .hot_pixels()
+        .iter()
+        .map(|&p| [p / h as u32, p % h as u32])
+        .collect();
+    let meta = serde_json::json!({
+        "generator": GENERATOR,
+        "name": cfg.name,
+        "seed": cfg.seed,
+        "fx": intr.fx,
+        "fy": intr.fy,
+        "cx": intr.cx,
+        "cy": intr.cy,
+        "width": intr.width,
+        "height": intr.height,
+        "config": cfg,
+        "camera": {
+            "model": "pinhole",
+            "width": intr.width,
+            "height": intr.height,
+            "fx": intr.fx,
+            "fy": intr.fy,
+            "cx": intr.cx,
+            "cy": intr.cy,
+            "k1": 0.0,
+            "k2": 0.0,
+            "sensor_like": cfg.preset.name(),
+        },
+        "conventions": {
+            "camera_frame": "x right, y down, z forward",
+            "omega": "camera-frame angular velocity (wx, wy, wz) in rad/s",
+            "yaw_sign": "wy > 0 = camera turns right (clockwise seen from above) => scene moves left in image (du/dt < 0)",
+            "pixel": "x = column (0 = left), y = row (0 = top)",
+            "polarity": "1 = ON (log intensity increased), 0 = OFF",
+            "time": "integer microseconds from 0 (events.txt in seconds with 6 decimals)",
+            "imu_frame": "identical to camera frame; imu.txt: m/s^2 and rad/s",
+            "pose": "world = gravity-aligned (y down along gravity), origin and heading of the camera at t=0; R_wc = Ry(heading) Rx(pitch) Rz(roll)",
+            "euler": "heading > 0 = turned right, pitch > 0 = nose up, roll > 0 = right side down (rad)",
+            "yaw_rad": "gt.csv yaw_rad = integral of camera-frame wy from t=0 (equals heading when pitch = roll = 0)",
+        },
+        "motion": motion,
+        "scene": scene_meta,
+        "sensor": {
+            "hot_pixels": hot,
+            "Cp_mean": cp_mean,
+            "Cm_mean": cm_mean,
+        },
+        "imu": {
+            "rate_hz": cfg.imu.rate_hz,
+            "gyro_bias_rad_s": gyro_bias,
+            "acc_bias_m_s2": acc_bias,
+            "gyro_noise_density": cfg.imu.gyro_noise_density,
+            "acc_noise_density": cfg.imu.acc_noise_density,
+        },
+        "stats": stats,
+        "files": ["events.txt", "gt.csv", "imu.txt"],
+    });
+
+    Ok(Sequence {
+        config: cfg.clone(),
+        intrinsics: intr,
+        motion,
+        events,
+        gt,
+        imu,
+        stats,
+        meta,
+    })
+}
+
+/// Builds the textures. Returns the scene and its description for `meta.json`.
+fn build_scene(cfg: &SynthConfig, motion: &MotionSpec) -> (Scene, serde_json::Value) {
+    let intr = &cfg.intrinsics;
+    let mut trng = rng::stream(cfg.seed, rng::Stream::Texture);
+    let f = 0.5 * (intr.fx + intr.fy);
+    let texel_rad = 1.0 / (f * cfg.tex_res);
+    let w_tex = (std::f64::consts::TAU / texel_rad).round().max(16.0) as usize;
+    // Largest |cylinder height| seen by the image, plus room for pitch and roll.
+    let dy_max = (intr.cy.max(f64::from(intr.height) - 1.0 - intr.cy) + 1.0) / intr.fy;
+    let tilt: f64 = motion
+        .pitch
+        .components
+        .iter()
+        .chain(&motion.roll.components)
+        .map(|c| c[0].abs())
+        .sum();
+    let h_max = 1.3 * dy_max + 0.1 + 2.0 * tilt;
+    let h_tex = (2.0 * h_max * f * cfg.tex_res).round().max(8.0) as usize;
+    let horizon_v = h_tex as f64 / 2.0;
+    let grid = match cfg.texture {
+        TextureKind::Noise => {
+            let mut g = texture::noise_panorama(&mut trng, w_tex, h_tex, cfg.contrast);
+            g.blur(cfg.blur_texels, false);
+            g
+        }
+        TextureKind::Urban => {
+            let mut g = texture::urban_panorama(&mut trng, w_tex, h_tex, horizon_v, texel_rad);
+            g.blur(cfg.blur_texels, false);
+            texture::to_log(&mut g, cfg.contrast);
+            g
+        }
+    };
+    let panorama = Panorama::new(&grid, h_max);
+    let (ground, ground_meta) = if cfg.ground {
+        let n = 512;
+        let texel_m: f64 = 0.1;
+        let mut g = texture::ground_texture(&mut trng, n, (1.75 / texel_m).round() as usize);
+        g.blur(cfg.blur_texels, true);
+        texture::to_log(&mut g, cfg.contrast);
+        let ground = Ground::new(g, texel_m, cfg.cam_height_m);
+        let meta = serde_json::json!({
+            "height_m": cfg.cam_height_m,
+            "texel_m": texel_m,
+            "period_m": ground.period_m(),
+        });
+        (Some(ground), meta)
+    } else {
+        (None, serde_json::Value::Null)
+    };
+    let meta = serde_json::json!({
+        "panorama": {
+            "type": "cylinder at infinity",
+            "texture": cfg.texture.name(),
+            "width_texels": w_tex,
+            "height_texels": h_tex,
+            "h_max": h_max,
+        },
+        "ground_plane": ground_meta,
+        "fast_yaw_renderer": motion.is_pure_yaw() && ground.is_none(),
+    });
+    (Scene { panorama, ground }, meta)
+}
+
+/// Largest `|a[i] - b[i]|`.
+fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()))
+}
+
+/// Largest number of events in a bin of `bin_us`, as events/s.
+fn peak_rate(events: &[Event], bin_us: u64) -> f64 {
+    let mut best = 0usize;
+    let mut start = 0usize;
+    let mut bin = 0u64;
+    for (i, e) in events.iter().enumerate() {
+        let b = e.t_us / bin_us;
+        if b != bin {
+            best = best.max(i - start);
+            start = i;
+            bin = b;
+        }
+    }
+    best = best.max(events.len() - start);
+    best as f64 * 1e6 / bin_us as f64
+}

@@ -1,0 +1,178 @@
+//! `host-sim synth` writes the documented files; `host-sim eval` prints the figures.
+
+use std::path::Path;
+use std::process::Command;
+
+fn host_sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+fn run_ok(cmd: &mut Command) -> String {
+    let out = cmd.output().expect("run host-sim");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("utf-8")
+}
+
+/// A small, short sequence (fast in debug builds).
+fn synth(dir: &Path) {
+    let out = run_ok(host_sim().args(["synth", "--out"]).arg(dir).args([
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--focal-px",
+        "45",
+        "--duration",
+        "0.3",
+        "--motion",
+        "sinusoid",
+        "--max-rate",
+        "1.0",
+        "--seed",
+        "3",
+    ]));
+    assert!(out.contains("events"), "{out}");
+}
+
+/// Writes `t_s,<column>` from the ground truth's wy, scaled.
+fn estimate_from_gt(gt: &Path, out: &Path, column: &str, scale: f64) {
+    let text = std::fs::read_to_string(gt).unwrap();
+    let mut s = format!("t_s,{column}\n");
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let wy: f64 = f[2].parse().unwrap();
+        s.push_str(&format!("{},{}\n", f[0], wy * scale));
+    }
+    std::fs::write(out, s).unwrap();
+}
+
+#[test]
+fn synth_writes_the_documented_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("seq");
+    synth(&seq);
+    let events = std::fs::read_to_string(seq.join("events.txt")).unwrap();
+    let mut last = 0.0;
+    let mut n = 0;
+    for line in events.lines() {
+        let f: Vec<&str> = line.split(' ').collect();
+        assert_eq!(f.len(), 4, "{line}");
+        assert_eq!(f[0].split('.').nth(1).map(str::len), Some(6), "{line}");
+        let t: f64 = f[0].parse().unwrap();
+        assert!(t >= last && t <= 0.3);
+        last = t;
+        assert!(f[1].parse::<u16>().unwrap() < 64 && f[2].parse::<u16>().unwrap() < 48);
+        assert!(f[3] == "0" || f[3] == "1");
+        n += 1;
+    }
+    assert!(n > 100, "{n} events");
+    let gt = std::fs::read_to_string(seq.join("gt.csv")).unwrap();
+    let mut lines = gt.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "t_s,wx,wy,wz,yaw_rad,heading_rad,pitch_rad,roll_rad,speed_mps"
+    );
+    assert_eq!(lines.count(), 301);
+    let imu = std::fs::read_to_string(seq.join("imu.txt")).unwrap();
+    assert_eq!(imu.lines().next().unwrap().split(' ').count(), 7);
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(seq.join("meta.json")).unwrap()).unwrap();
+    assert_eq!(meta["width"], 64);
+    assert_eq!(meta["height"], 48);
+    assert_eq!(meta["fx"], 45.0);
+    assert_eq!(meta["cx"], 31.5);
+    assert_eq!(meta["camera"]["fy"], 45.0);
+    assert_eq!(meta["stats"]["events"], n);
+    assert_eq!(meta["config"]["seed"], 3);
+}
+
+#[test]
+fn eval_prints_the_figures_and_plots() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("seq");
+    synth(&seq);
+    let yaw = dir.path().join("yaw.csv");
+    estimate_from_gt(&seq.join("gt.csv"), &yaw, "yaw_rate_rad_s", 1.1);
+    let png = dir.path().join("eval.png");
+    let text = run_ok(
+        host_sim()
+            .args(["eval", "--yaw"])
+            .arg(&yaw)
+            .arg("--gt")
+            .arg(seq.join("gt.csv"))
+            .arg("--imu")
+            .arg(seq.join("imu.txt"))
+            .arg("--plot")
+            .arg(&png),
+    );
+    for key in [
+        "RMSE",
+        "RMSE / peak",
+        "correlation",
+        "ARRE",
+        "final heading error",
+        "gyro:",
+    ] {
+        assert!(text.contains(key), "missing {key}: {text}");
+    }
+    let bytes = std::fs::read(&png).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG"));
+
+    let json = run_ok(
+        host_sim()
+            .args(["eval", "--json", "--yaw"])
+            .arg(&yaw)
+            .arg("--gt")
+            .arg(seq.join("gt.csv"))
+            .arg("--imu")
+            .arg(seq.join("imu.txt")),
+    );
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let corr = v["estimate"]["correlation"].as_f64().unwrap();
+    assert!((corr - 1.0).abs() < 1e-6, "{corr}");
+    let rel = v["estimate"]["rmse_rel_peak"].as_f64().unwrap();
+    assert!(rel > 0.01 && rel < 0.1, "{rel}");
+    // The simulated gyro: 0.01 rad/s bias.
+    let gyro_bias = v["gyro"]["mean_error_rad_s"].as_f64().unwrap();
+    assert!((gyro_bias.abs() - 0.01).abs() < 0.003, "{gyro_bias}");
+}
+
+#[test]
+fn eval_of_a_normalized_readout() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("seq");
+    synth(&seq);
+    let yaw = dir.path().join("yaw.csv");
+    estimate_from_gt(&seq.join("gt.csv"), &yaw, "yaw_norm", 0.3);
+    let text = run_ok(
+        host_sim()
+            .args(["eval", "--yaw"])
+            .arg(&yaw)
+            .arg("--gt")
+            .arg(seq.join("gt.csv")),
+    );
+    assert!(text.contains("normalized"), "{text}");
+    assert!(text.contains("after scale fit"), "{text}");
+}
+
+#[test]
+fn eval_errors_are_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let yaw = dir.path().join("yaw.csv");
+    std::fs::write(&yaw, "time,value\n0,1\n").unwrap();
+    let out = host_sim()
+        .args(["eval", "--yaw"])
+        .arg(&yaw)
+        .arg("--gt")
+        .arg(dir.path().join("missing.csv"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.starts_with("error: "), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+}
