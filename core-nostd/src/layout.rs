@@ -54,6 +54,20 @@ pub trait Layout {
     fn units(&self, cell: usize) -> UnitMask;
     /// Pixel coordinates of cell `cell`.
     fn pixel(&self, cell: usize) -> (u16, u16);
+
+    /// Units present in `cell`, the cell of pixel `(x, y)` (a layout may answer faster when it
+    /// knows the pixel).
+    #[inline]
+    fn units_at(&self, _x: u16, _y: u16, cell: usize) -> UnitMask {
+        self.units(cell)
+    }
+
+    /// The cell `dx` pixels to the right of pixel `(x, y)` (whose cell is `cell`), if used.
+    #[inline]
+    fn neighbor(&self, x: u16, y: u16, _cell: usize, dx: i32) -> Option<usize> {
+        let nx = u16::try_from(i32::from(x) + dx).ok()?;
+        self.cell(nx, y)
+    }
 }
 
 /// Every pixel pair at the stride, both orientations, over a window of the sensor.
@@ -146,6 +160,24 @@ impl Layout for Dense {
         lr | (rl << 1)
     }
 
+    #[inline]
+    fn units_at(&self, x: u16, _y: u16, _cell: usize) -> UnitMask {
+        let cx = x.wrapping_sub(self.x0);
+        let lr = u8::from(cx >= self.stride);
+        let rl = u8::from(u32::from(cx) + u32::from(self.stride) < u32::from(self.w));
+        lr | (rl << 1)
+    }
+
+    #[inline]
+    fn neighbor(&self, x: u16, _y: u16, cell: usize, dx: i32) -> Option<usize> {
+        // Within the window's row: the cell index moves by dx.
+        let cx = i32::from(x.wrapping_sub(self.x0)) + dx;
+        if cx < 0 || cx >= i32::from(self.w) {
+            return None;
+        }
+        usize::try_from(cell as i64 + i64::from(dx)).ok()
+    }
+
     fn pixel(&self, cell: usize) -> (u16, u16) {
         let w = self.w as usize;
         if w == 0 {
@@ -183,6 +215,9 @@ pub struct PaperBoxes {
 }
 
 impl PaperBoxes {
+    /// Placement seed the tools and the firmware use by default.
+    pub const DEFAULT_SEED: u64 = 1;
+
     /// The layout on a `width` x `height` sensor with placement seed `seed` and stride 2.
     /// `None` when the boxes do not fit on the sensor.
     pub fn new(width: u16, height: u16, seed: u64) -> Option<Self> {

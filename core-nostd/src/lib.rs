@@ -10,6 +10,7 @@
 #![no_std]
 #![cfg_attr(not(test), deny(clippy::float_arithmetic))]
 
+pub mod aer;
 pub mod event;
 pub mod evt;
 pub mod exp_table;

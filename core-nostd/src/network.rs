@@ -317,7 +317,21 @@ impl<'a, L: Layout> Network<'a, L> {
             return;
         };
         let t = ev.t_us;
+        let kernel = self.kernel;
+        // The pixel's own FAC trace just before the event (decayed once, used twice).
+        let (own_now, late) = match self.cells.get(c) {
+            Some(cell) => {
+                let d = t.wrapping_sub(cell.t_us);
+                let late = d >= 1 << 31 && cell.is_live();
+                (
+                    kernel.decay_fac(cell.fac(), if d >= 1 << 31 { 0 } else { d }),
+                    late,
+                )
+            }
+            None => return,
+        };
         if let InputFilter::Onsets { .. } = self.filter {
+            let onset_level = self.onset_level;
             let Some(cell) = self.cells.get_mut(c) else {
                 return;
             };
@@ -327,39 +341,38 @@ impl<'a, L: Layout> Network<'a, L> {
             } else {
                 cell.i_fac &= !POLARITY;
             }
-            let flipped = was_on != ev.on;
-            if !flipped && self.fac_at(Some(c), t) >= self.onset_level {
+            if was_on == ev.on && own_now >= onset_level {
                 self.stats.filtered += 1;
                 return;
             }
         }
-        let mask = self.layout.units(c);
-        let s = self.layout.stride();
-        let w_trg = self.kernel.params().w_trg;
+        if late {
+            self.stats.out_of_order += 1;
+        }
+        let mask = self.layout.units_at(ev.x, ev.y, c);
+        let s = i32::from(self.layout.stride());
+        let w_trg = kernel.params().w_trg;
         let drive_of = |fac: Trace| -> Trace {
             let prod = (u64::from(w_trg.to_bits()) * u64::from(fac.to_bits())) >> 16;
             Trace::from_bits(prod.min(u64::from(crate::params::TRACE_MAX.to_bits())) as u32)
         };
         let mut fac = [Trace::ZERO; 2];
         if mask & 1 != 0 {
-            let n = ev.x.checked_sub(s).and_then(|x| self.layout.cell(x, ev.y));
-            fac[0] = self.fac_at(n, t);
+            fac[0] = self.fac_at(self.layout.neighbor(ev.x, ev.y, c, -s), t);
         }
         if mask & 2 != 0 {
-            let n = ev.x.checked_add(s).and_then(|x| self.layout.cell(x, ev.y));
-            fac[1] = self.fac_at(n, t);
+            fac[1] = self.fac_at(self.layout.neighbor(ev.x, ev.y, c, s), t);
         }
-        if let Some(cell) = self.cells.get(c) {
-            if cell.is_live() && t.wrapping_sub(cell.t_us) >= 1 << 31 {
-                self.stats.out_of_order += 1;
-            }
+        if S::SPIKES {
+            self.advance_cell::<S>(c, t, sink);
         }
-        self.advance_cell::<S>(c, t, sink);
-        let kernel = self.kernel;
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };
-        let own = kernel.fac_input(cell.fac());
+        if !S::SPIKES && !late {
+            cell.t_us = t;
+        }
+        let own = kernel.fac_input(if S::SPIKES { cell.fac() } else { own_now });
         cell.set_fac(own);
         if mask != 0 {
             sink.trigger(&Trigger {

@@ -396,3 +396,211 @@ impl<L: crate::layout::Layout> OracleNetwork<L> {
         }
     }
 }
+
+/// The calibrated pipeline in f64 (see [`crate::readout::calibrated`] for the method): onset
+/// filter, FAC traces, per-trigger decoding with exact logarithms, leaky histograms over the
+/// same bins, the same aggregation. An independent implementation to check the fixed-point one.
+pub struct OracleYaw<L: crate::layout::Layout> {
+    p: OracleParams,
+    layout: L,
+    focal: f64,
+    cx: f64,
+    /// Histogram time constant and output period (µs).
+    tau_a: f64,
+    period: f64,
+    alpha: f64,
+    prior: f64,
+    /// Onset gap (µs).
+    gap: f64,
+    /// Per cell: FAC trace, its time, last polarity.
+    fac: std::vec::Vec<(f64, f64, bool)>,
+    hist: [[[f64; ORACLE_BINS]; 2]; 2],
+    next_out: Option<f64>,
+    last_event: f64,
+    /// Decoded bursts so far.
+    pub samples: u64,
+}
+
+const ORACLE_BINS: usize = 64;
+
+impl<L: crate::layout::Layout> OracleYaw<L> {
+    /// The pipeline with the calibrated readout's defaults (`tau_A` 10 ms, `alpha` 0.3, prior 3,
+    /// onset gap `gap_us`) and output period `period_us`.
+    pub fn new(
+        p: OracleParams,
+        layout: L,
+        focal: f64,
+        cx: f64,
+        period_us: f64,
+        gap_us: f64,
+    ) -> Self {
+        let n = layout.cell_count();
+        Self {
+            p,
+            layout,
+            focal,
+            cx,
+            tau_a: 10_000.0,
+            period: period_us,
+            alpha: 0.3,
+            prior: 3.0,
+            gap: gap_us,
+            fac: std::vec![(0.0, 0.0, false); n],
+            hist: [[[0.0; ORACLE_BINS]; 2]; 2],
+            next_out: None,
+            last_event: 0.0,
+            samples: 0,
+        }
+    }
+
+    fn fac_at(&self, c: Option<usize>, t: f64) -> f64 {
+        c.and_then(|c| self.fac.get(c)).map_or(0.0, |&(i, t0, _)| {
+            i * (-(t - t0).max(0.0) / self.p.tau_fac).exp()
+        })
+    }
+
+    /// One event at time `t` (µs); pushes `(t_us, yaw rad/s, stale)` for every output before it.
+    pub fn event(
+        &mut self,
+        t: f64,
+        x: u16,
+        y: u16,
+        on: bool,
+        out: &mut std::vec::Vec<(f64, f64, bool)>,
+    ) {
+        match self.next_out {
+            None => self.next_out = Some(t + self.period),
+            Some(_) => self.emit_until(t, false, out),
+        }
+        self.last_event = t;
+        let (sw, sh) = self.layout.sensor();
+        if x >= sw || y >= sh {
+            return;
+        }
+        let Some(c) = self.layout.cell(x, y) else {
+            return;
+        };
+        let own_now = self.fac_at(Some(c), t);
+        let was_on = self.fac.get(c).is_some_and(|f| f.2);
+        if let Some(f) = self.fac.get_mut(c) {
+            f.2 = on;
+        }
+        if was_on == on && own_now >= self.p.w_fac * (-self.gap / self.p.tau_fac).exp() {
+            return;
+        }
+        let mask = self.layout.units(c);
+        let s = i32::from(self.layout.stride());
+        let nb = |dx: i32| {
+            u16::try_from(i32::from(x) + dx)
+                .ok()
+                .and_then(|nx| self.layout.cell(nx, y))
+        };
+        let lr = if mask & 1 != 0 {
+            self.p.w_trg * self.fac_at(nb(-s), t)
+        } else {
+            0.0
+        };
+        let rl = if mask & 2 != 0 {
+            self.p.w_trg * self.fac_at(nb(s), t)
+        } else {
+            0.0
+        };
+        let own = own_now + self.p.w_fac;
+        if let Some(f) = self.fac.get_mut(c) {
+            *f = (own, t, on);
+        }
+        if mask == 0 {
+            return;
+        }
+        let (drive, positive) = if rl > lr { (rl, true) } else { (lr, false) };
+        // A burst from rest needs q tau / e >= 1 with q = g I / theta per µs.
+        let min_drive = core::f64::consts::E * self.p.theta / (self.p.gain_per_us * self.p.tau_trg);
+        let ratio = drive / (self.p.w_trg * own);
+        if drive < min_drive || !(ratio > 0.0 && ratio < 1.0) {
+            return;
+        }
+        let dt_s = -self.p.tau_fac * ratio.ln() * 1e-6;
+        let dx = f64::from(x) - self.cx;
+        let g = self.focal + dx * dx / self.focal;
+        let w = f64::from(self.layout.stride()) / (dt_s * g);
+        let (lo, hi) = (0.02f64.ln(), 20.0f64.ln());
+        let bin = (((w.ln() - lo) / ((hi - lo) / ORACLE_BINS as f64)).floor())
+            .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize;
+        let half = usize::from(f64::from(x) >= self.cx);
+        if let Some(b) = self
+            .hist
+            .get_mut(half)
+            .and_then(|h| h.get_mut(usize::from(positive)))
+            .and_then(|h| h.get_mut(bin))
+        {
+            *b += 1.0;
+            self.samples += 1;
+        }
+    }
+
+    /// Emits every output up to `t` (µs) inclusive (end of the recording).
+    pub fn finish(&mut self, t: f64, out: &mut std::vec::Vec<(f64, f64, bool)>) {
+        self.emit_until(t, true, out);
+    }
+
+    fn emit_until(&mut self, t: f64, inclusive: bool, out: &mut std::vec::Vec<(f64, f64, bool)>) {
+        let Some(mut next) = self.next_out else {
+            return;
+        };
+        while next < t || (inclusive && next <= t) {
+            let est = [self.half(0), self.half(1)];
+            let keep = (-self.period / self.tau_a).exp();
+            for b in self.hist.iter_mut().flatten().flatten() {
+                *b *= keep;
+            }
+            let v = match est {
+                [Some((l, sl)), Some((r, sr))] if sl == sr => {
+                    let m = 0.5 * (l + r);
+                    if sl {
+                        m
+                    } else {
+                        -m
+                    }
+                }
+                _ => 0.0,
+            };
+            out.push((next, v, next - self.last_event > 100_000.0));
+            next += self.period;
+        }
+        self.next_out = Some(next);
+    }
+
+    fn half(&self, h: usize) -> Option<(f64, bool)> {
+        let [neg, pos] = self.hist.get(h)?;
+        let (sn, sp): (f64, f64) = (neg.iter().sum(), pos.iter().sum());
+        let (win, lose, positive) = if sp >= sn {
+            (pos, neg, true)
+        } else {
+            (neg, pos, false)
+        };
+        let net: std::vec::Vec<f64> = win
+            .iter()
+            .zip(lose)
+            .map(|(w, l)| (w - l).max(0.0))
+            .collect();
+        let net_sum: f64 = net.iter().sum();
+        if net_sum == 0.0 || net_sum < self.alpha * (sn + sp) {
+            return None;
+        }
+        let half_mass = 0.5 * (net_sum + self.prior);
+        if self.prior >= half_mass {
+            return None;
+        }
+        let (lo, hi) = (0.02f64.ln(), 20.0f64.ln());
+        let bw = (hi - lo) / ORACLE_BINS as f64;
+        let mut acc = self.prior;
+        for (i, &m) in net.iter().enumerate() {
+            if m > 0.0 && acc + m >= half_mass {
+                let frac = (half_mass - acc) / m;
+                return Some(((lo + (i as f64 + frac) * bw).exp(), positive));
+            }
+            acc += m;
+        }
+        None
+    }
+}

@@ -97,3 +97,30 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         self.next_out = Some(next);
     }
 }
+
+/// Onset gap of the product's pipeline (µs): a pixel whose last onset is older than this starts
+/// a new edge even without a polarity change.
+pub const ONSET_GAP_US: u32 = 50_000;
+
+/// The product's pipeline, as the firmware and `host-sim run` both build it: the onset filter,
+/// the network over `layout` (state in `cells` and `active`), the calibrated readout, one sample
+/// per `cal.period_us`.
+pub fn calibrated<'a, L: Layout>(
+    kernel: &'a crate::unit::Kernel,
+    layout: L,
+    cells: &'a mut [crate::network::Cell],
+    active: &'a mut [u32],
+    cal: crate::readout::calibrated::Calibration,
+) -> Result<Pipeline<'a, L, crate::readout::calibrated::Calibrated>, crate::network::NetError> {
+    let readout = crate::readout::calibrated::Calibrated::new(kernel, layout.stride(), cal);
+    let net = Network::new(
+        kernel,
+        layout,
+        cells,
+        active,
+        crate::network::InputFilter::Onsets {
+            gap_us: ONSET_GAP_US,
+        },
+    )?;
+    Ok(Pipeline::new(net, readout, cal.period_us))
+}

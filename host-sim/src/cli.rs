@@ -26,6 +26,8 @@ pub struct Cli {
 pub enum Command {
     /// Sweep one FAC->TRG pair over time differences 0-100 ms (the paper's Fig. 2b/c).
     Sweep(commands::sweep::Args),
+    /// The host path end to end: a built-in synthetic scene, the fixed-point pipeline, evaluation.
+    Demo(commands::demo::Args),
     /// Run a recording through the fixed-point pipeline (the firmware's code) to a yaw-rate CSV.
     Run(Box<commands::run::Args>),
     /// Convert a recording to CSV (`t_us,x,y,p`) or Prophesee EVT 3.0.
@@ -34,6 +36,12 @@ pub enum Command {
     Synth(commands::synth::Args),
     /// Compare an estimated yaw rate with ground truth (and the gyro): RMSE, correlation, ARRE.
     Eval(commands::eval::Args),
+    /// Decode a captured yaw output stream (the firmware's yaw frames) to CSV.
+    YawDecode(commands::yaw_decode::Args),
+    /// Write a recording as the AER-over-SPI stream and print the firmware's settings
+    /// (used by `cargo xtask qemu`).
+    #[command(hide = true)]
+    AerStream(crate::aer_stream::Args),
 }
 
 /// Parses the arguments, runs the command, maps errors to one line and exit code 2.
@@ -48,10 +56,13 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Sweep(args) => commands::sweep::run(args),
+        Command::Demo(args) => commands::demo::run(args),
         Command::Run(args) => commands::run::run(*args),
         Command::Convert(args) => commands::convert::run(args),
         Command::Synth(args) => commands::synth::run(args),
         Command::Eval(args) => commands::eval::run(args),
+        Command::YawDecode(args) => commands::yaw_decode::run(args),
+        Command::AerStream(args) => crate::aer_stream::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,6 +2,7 @@
 //! run with the fixed-point core or the f64 oracle, evaluation against ground truth, plots,
 //! synthetic scenes and the bridge to the emulated firmware.
 
+pub mod aer_stream;
 pub mod cli;
 pub mod commands;
 pub mod eval;

@@ -2,28 +2,14 @@
 //! pipeline (the firmware's code) reaches correlation >= 0.9 with the ground-truth yaw rate and
 //! RMSE <= 20 % of its peak on each, with no scaling of the output.
 
-use host_sim::commands::run::{run_pipeline, Args, LayoutKind, ReadoutKind};
+use host_sim::commands::run::{run_pipeline, Args, Model};
 use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
 use host_sim::formats;
 use host_sim::testdata::shared_data;
 
 fn args_for(input: std::path::PathBuf) -> Args {
-    Args {
-        input,
-        format: None,
-        layout: LayoutKind::Dense,
-        stride: 2,
-        readout: ReadoutKind::Calibrated,
-        focal_px: None,
-        cx: None,
-        cy: None,
-        width: None,
-        height: None,
-        rate_hz: 1000,
-        out: std::path::PathBuf::from("unused.csv"),
-        plot: None,
-    }
+    Args::new(input, "unused.csv".into())
 }
 
 #[test]
@@ -60,11 +46,28 @@ fn calibrated_yaw_rate_on_every_synthetic_sequence() {
         }
         let peak = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let (corr, err) = (pearson(&e, &g), rmse(&e, &g) / peak);
+        // The f64 oracle on the same events: the fixed-point pipeline follows it.
+        let float_args = Args {
+            model: Model::Float,
+            ..args_for(seq.join("events.raw"))
+        };
+        let float = run_pipeline(&float_args, &rec).expect("run float");
+        let (a, b): (Vec<f64>, Vec<f64>) = out
+            .samples
+            .iter()
+            .zip(&float.samples)
+            .map(|(x, y)| (x.1, y.1))
+            .unzip();
+        let fixed_vs_float = pearson(&a, &b);
         eprintln!(
-            "{name}: correlation {corr:.3}, RMSE {:.1} % of peak",
+            "{name}: correlation {corr:.3}, RMSE {:.1} % of peak; fixed vs float {fixed_vs_float:.4}",
             err * 100.0
         );
         assert!(corr >= 0.9, "{name}: correlation {corr:.3}");
         assert!(err <= 0.2, "{name}: RMSE {:.1} % of peak", err * 100.0);
+        assert!(
+            fixed_vs_float >= 0.99,
+            "{name}: fixed vs float {fixed_vs_float:.4}"
+        );
     }
 }

@@ -9,11 +9,19 @@ use std::process::{Command, ExitCode};
 
 use anyhow::{bail, Context, Result};
 
+mod firmware;
+
 /// Debian packages the host tools need to build and run.
-const APT_PACKAGES: &[&str] = &["pkg-config", "libhdf5-dev"];
+const APT_PACKAGES: &[&str] = &[
+    "pkg-config",
+    "libhdf5-dev",
+    // the emulated firmware (`cargo xtask qemu`, part of `test`) and its size report
+    "qemu-system-arm",
+    "binutils-arm-none-eabi",
+];
 
 /// The Cortex-M target of the firmware and of the no_std core.
-const TARGET: &str = "thumbv7em-none-eabihf";
+pub const TARGET: &str = "thumbv7em-none-eabihf";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -21,6 +29,10 @@ fn main() -> ExitCode {
         Some("test") => test(),
         Some("demo") => demo(&args[1..]),
         Some("setup") => setup(),
+        Some("firmware") => firmware::firmware(&args[1..]),
+        Some("flash") => firmware::flash(&args[1..]),
+        Some("qemu") => firmware::qemu(&args[1..]),
+        Some("firmware-test") => setup().and_then(|()| firmware::check()),
         Some("help") | Some("--help") | Some("-h") | None => {
             print_help();
             Ok(())
@@ -45,24 +57,28 @@ fn print_help() {
          tasks:\n  \
          test    fmt, clippy, every test, the Cortex-M builds (what CI runs)\n  \
          demo    the main job on the built-in default input; results in out/\n  \
-         setup   install the system packages the tools need (apt, when root)"
+         setup   install the system packages the tools need (apt, when root)\n  \
+         firmware [--board qemu|stm32f405]   build the firmware and print its flash/RAM use\n  \
+         flash   build the STM32F405 firmware and run it through probe-rs (defmt over RTT)\n  \
+         qemu INPUT --out yaw.csv [options]  run a recording through the emulated firmware\n  \
+         firmware-test   only the firmware part of `test` (both boards, QEMU runs)"
     );
 }
 
-fn root() -> PathBuf {
+pub fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_else(|| PathBuf::from("."))
 }
 
-fn cargo() -> Command {
+pub fn cargo() -> Command {
     let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
     c.current_dir(root());
     c
 }
 
-fn run(what: &str, mut cmd: Command) -> Result<()> {
+pub fn run(what: &str, mut cmd: Command) -> Result<()> {
     eprintln!("xtask: {what}");
     let status = cmd
         .status()
@@ -74,7 +90,7 @@ fn run(what: &str, mut cmd: Command) -> Result<()> {
 }
 
 /// Installs missing Debian packages when running as root; otherwise prints the exact command.
-fn setup() -> Result<()> {
+pub fn setup() -> Result<()> {
     let missing: Vec<&str> = APT_PACKAGES
         .iter()
         .copied()
@@ -145,50 +161,60 @@ fn test() -> Result<()> {
         TARGET,
     ]);
     run("core-nostd for thumbv7em-none-eabihf", c)?;
-    firmware_build()?;
+    firmware::check()?;
     eprintln!("xtask: all checks passed");
     Ok(())
 }
 
-/// Checks and builds the firmware (its own workspace, Cortex-M only).
-fn firmware_build() -> Result<()> {
-    let mut c = cargo();
-    c.current_dir(root().join("firmware"));
-    c.args(["fmt", "--check"]);
-    run("firmware fmt --check", c)?;
-    let mut c = cargo();
-    c.current_dir(root().join("firmware"));
-    c.args(["build", "--release"]);
-    run("firmware build (thumbv7em-none-eabihf)", c)?;
-    let mut c = cargo();
-    c.current_dir(root().join("firmware"));
-    c.args(["clippy", "--release", "--", "-D", "warnings"]);
-    run("firmware clippy", c)
-}
-
+/// The main job: the firmware, emulated, on a built-in synthetic recording, its yaw rate judged
+/// against the ground truth (and the simulated gyro). Results in `out/demo-firmware/`.
 fn demo(_args: &[String]) -> Result<()> {
     setup()?;
-    let out = root().join("out");
+    let out = root().join("out/demo-firmware");
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    let mut c = cargo();
-    c.args([
-        "run",
-        "--release",
-        "-p",
-        "host-sim",
-        "--",
-        "sweep",
-        "--model",
-        "fixed",
-        "--out",
-    ])
-    .arg(out.join("sweep.csv"))
-    .arg("--plot")
-    .arg(out.join("sweep.png"));
+    let scene = out.join("scene");
+    let mut c = firmware::host_sim();
+    c.args(["synth", "--duration", "4", "--seed", "1", "--out"])
+        .arg(&scene);
     run(
-        "host-sim sweep (fixed core, plot against the f64 oracle)",
+        "host-sim synth (built-in scene: urban texture, sinusoidal yaw, 4 s)",
         c,
     )?;
-    eprintln!("xtask: demo done: out/sweep.csv, out/sweep.png");
+    firmware::build(firmware::Board::Qemu)?;
+    let yaw = out.join("yaw.csv");
+    let a = firmware::QemuArgs {
+        input: scene.join("events.txt"),
+        out: yaw.clone(),
+        rate_hz: 1000,
+        work: Some(out.join("qemu")),
+        ..Default::default()
+    };
+    eprintln!("xtask: running the firmware in QEMU (mps2-an386, Cortex-M4F)");
+    let report = firmware::qemu_run(&a)?;
+    let summary = report
+        .summary
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .to_string();
+    let mut c = firmware::host_sim();
+    c.args(["eval", "--yaw"])
+        .arg(&yaw)
+        .arg("--gt")
+        .arg(scene.join("gt.csv"))
+        .arg("--imu")
+        .arg(scene.join("imu.txt"))
+        .arg("--plot")
+        .arg(out.join("eval.png"));
+    run(
+        "host-sim eval (firmware yaw rate vs ground truth and gyro)",
+        c,
+    )?;
+    println!("firmware: {summary}");
+    println!(
+        "xtask: demo done: {} and {}",
+        yaw.display(),
+        out.join("eval.png").display()
+    );
     Ok(())
 }

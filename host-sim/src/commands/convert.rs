@@ -1,4 +1,4 @@
-//! `host-sim convert INPUT --to csv|evt3 --out FILE [--format F]`.
+//! `host-sim convert INPUT --to csv|evt3|aer --out FILE [--format F]`.
 //!
 //! - `csv`: `t_us,x,y,p` with a header line (p = 1 ON, 0 OFF), one line per event in stream
 //!   order, times as in the input (AEDAT4: absolute Unix µs): byte-identical to the reference
@@ -6,6 +6,8 @@
 //! - `evt3`: a Prophesee EVT 3.0 `.raw` file with a header (sensor size from the input, else the
 //!   events' extent). Inputs whose first event is at or after 2^24 µs keep their absolute time
 //!   through a `% tde_time_offset_us` header line that this tool reads back.
+//! - `aer`: the firmware's AER-over-SPI stream (`docs/wire-formats.md`), times relative to the
+//!   first event, as the firmware and `host-sim run` count them.
 //!
 //! The output is written to a temporary file and renamed: a failed run leaves no output.
 
@@ -22,6 +24,8 @@ pub enum To {
     Csv,
     /// Prophesee EVT 3.0 `.raw`.
     Evt3,
+    /// The firmware's AER-over-SPI stream (framed, CRC-checked).
+    Aer,
 }
 
 #[derive(Debug, clap::Args)]
@@ -45,6 +49,7 @@ pub fn run(args: Args) -> Result<()> {
     match args.to {
         To::Csv => formats::write_csv(&rec.events, &args.out),
         To::Evt3 => formats::write_evt3(&rec.events, rec.width, rec.height, &args.out),
+        To::Aer => crate::aer_stream::write_aer(&rec.events, &args.out).map(|_| ()),
     }
     .with_context(|| format!("convert {} -> {}", args.input.display(), args.out.display()))
 }

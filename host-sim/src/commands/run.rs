@@ -14,8 +14,10 @@ use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::{Dense, Layout, PaperBoxes};
 use core_nostd::network::{active_words, Cell, InputFilter, Network};
+use core_nostd::oracle::{OracleNetwork, OracleParams, OracleYaw};
+use core_nostd::params::TdeParams;
 use core_nostd::pipeline::Pipeline;
-use core_nostd::readout::calibrated::{Calibrated, Calibration};
+use core_nostd::readout::calibrated::Calibration;
 use core_nostd::readout::normalized::Normalized;
 use core_nostd::readout::{Readout, YawSample};
 use core_nostd::unit::Kernel;
@@ -23,11 +25,10 @@ use core_nostd::unit::Kernel;
 use crate::formats::{self, Format, HostEvent};
 use crate::output::write_atomically;
 
-/// Default onset gap of the calibrated pipeline (µs): a pixel silent this long starts a new edge.
-pub const ONSET_GAP_US: u32 = 50_000;
+pub use core_nostd::pipeline::ONSET_GAP_US;
 
-/// Default seed of the paper-boxes placement.
-pub const BOXES_SEED: u64 = 1;
+/// Seed of the paper-boxes placement.
+pub const BOXES_SEED: u64 = PaperBoxes::DEFAULT_SEED;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum LayoutKind {
@@ -36,6 +37,8 @@ pub enum LayoutKind {
     /// The paper's on-chip layout: two 20x20 boxes, 100 units each.
     PaperBoxes,
 }
+
+pub use crate::commands::sweep::Model;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum ReadoutKind {
@@ -61,6 +64,9 @@ pub struct Args {
     /// Readout.
     #[arg(long, value_enum, default_value_t = ReadoutKind::Calibrated)]
     pub readout: ReadoutKind,
+    /// Model: the fixed-point core (the firmware's code) or the f64 oracle.
+    #[arg(long, value_enum, default_value_t = Model::Fixed)]
+    pub model: Model,
     /// Focal length in px (default: from the recording).
     #[arg(long)]
     pub focal_px: Option<f64>,
@@ -101,32 +107,93 @@ pub struct RunOutput {
     pub seconds: f64,
 }
 
+/// The sensor geometry a run uses: flags first, then the recording (its header, `meta.json` or
+/// `calib.txt`), then the events' extent; the principal point defaults to the sensor centre.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Sensor width (px).
+    pub width: u16,
+    /// Sensor height (px).
+    pub height: u16,
+    /// Focal length (px), when known.
+    pub focal: Option<f64>,
+    /// Principal point column (px).
+    pub cx: f64,
+}
+
+impl Camera {
+    /// Resolves the geometry from the flags and the recording.
+    pub fn resolve(
+        size: Option<(u16, u16)>,
+        focal_px: Option<f64>,
+        cx: Option<f64>,
+        rec: &formats::Recording,
+    ) -> Result<Self> {
+        let (width, height) = match size {
+            Some(s) => s,
+            None => rec
+                .size_or_extent()
+                .context("cannot tell the sensor size: pass --width and --height")?,
+        };
+        let focal = focal_px
+            .or(rec.intrinsics.map(|i| i.fx))
+            .filter(|f| *f > 0.0);
+        let cx = cx
+            .or(rec.intrinsics.map(|i| i.cx))
+            .unwrap_or((f64::from(width) - 1.0) / 2.0);
+        Ok(Self {
+            width,
+            height,
+            focal,
+            cx,
+        })
+    }
+}
+
+impl Args {
+    /// The defaults of `host-sim run` for `input` (dense layout, stride 2, calibrated readout,
+    /// fixed-point model, 1 kHz, geometry from the recording); `out` is only used by `run`.
+    pub fn new(input: PathBuf, out: PathBuf) -> Self {
+        Self {
+            input,
+            format: None,
+            layout: LayoutKind::Dense,
+            stride: 2,
+            readout: ReadoutKind::Calibrated,
+            model: Model::Fixed,
+            focal_px: None,
+            cx: None,
+            cy: None,
+            width: None,
+            height: None,
+            rate_hz: 1000,
+            out,
+            plot: None,
+        }
+    }
+}
+
 /// Runs the pipeline over a recording with the given options (the testable core of `run`).
 pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> {
     if !(1..=1_000_000).contains(&args.rate_hz) || 1_000_000 % args.rate_hz != 0 {
         bail!("--rate-hz must divide 1000000 (got {})", args.rate_hz);
     }
     let period_us = 1_000_000 / args.rate_hz;
-    let (w, h) = match (args.width, args.height) {
-        (Some(w), Some(h)) => (w, h),
-        _ => rec
-            .size_or_extent()
-            .context("cannot tell the sensor size: pass --width and --height")?,
-    };
-    let focal = args
-        .focal_px
-        .or(rec.intrinsics.map(|i| i.fx))
-        .filter(|f| *f > 0.0);
-    let cx = args
-        .cx
-        .or(rec.intrinsics.map(|i| i.cx))
-        .unwrap_or((f64::from(w) - 1.0) / 2.0);
+    let Camera {
+        width: w,
+        height: h,
+        focal,
+        cx,
+    } = Camera::resolve(args.width.zip(args.height), args.focal_px, args.cx, rec)?;
     let kernel = Kernel::DEFAULT;
     match args.layout {
         LayoutKind::Dense => {
             let layout = Dense::new(w, h, args.stride)
                 .with_context(|| format!("stride {} does not fit a {w}x{h} sensor", args.stride))?;
-            run_on_layout(args, rec, &kernel, layout, focal, cx, period_us)
+            match args.model {
+                Model::Fixed => run_on_layout(args, rec, &kernel, layout, focal, cx, period_us),
+                Model::Float => run_float(args, rec, layout, focal, cx, period_us),
+            }
         }
         LayoutKind::PaperBoxes => {
             let layout =
@@ -136,7 +203,105 @@ pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> 
                         args.stride
                     )
                 })?;
-            run_on_layout(args, rec, &kernel, layout, focal, cx, period_us)
+            match args.model {
+                Model::Fixed => run_on_layout(args, rec, &kernel, layout, focal, cx, period_us),
+                Model::Float => run_float(args, rec, layout, focal, cx, period_us),
+            }
+        }
+    }
+}
+
+/// The same run with the f64 oracle: exact exponentials and logarithms throughout.
+fn run_float<L: Layout>(
+    args: &Args,
+    rec: &formats::Recording,
+    layout: L,
+    focal: Option<f64>,
+    cx: f64,
+    period_us: u32,
+) -> Result<RunOutput> {
+    let Some(first) = rec.events.first() else {
+        bail!("the recording has no events");
+    };
+    let t0 = first.t_us;
+    let p = OracleParams::from(&TdeParams::DEFAULT);
+    let period = f64::from(period_us);
+    let start = Instant::now();
+    let bar = progress_bar(rec.events.len() as u64);
+    let last = rec.events.last().map_or(0.0, |e| (e.t_us - t0) as f64);
+    let (samples, outputs, ignored) = match args.readout {
+        ReadoutKind::Calibrated => {
+            let f = focal.context("focal length unknown: pass --focal-px (and --cx)")?;
+            let mut y = OracleYaw::new(p, layout, f, cx, period, f64::from(ONSET_GAP_US));
+            let mut out = Vec::new();
+            for (i, e) in rec.events.iter().enumerate() {
+                y.event((e.t_us - t0) as f64, e.x, e.y, e.on, &mut out);
+                if i % 65_536 == 0 {
+                    bar.set_position(i as u64);
+                }
+            }
+            y.finish(last, &mut out);
+            let samples = out
+                .iter()
+                .map(|&(t, v, stale)| ((t0 as f64 + t) * 1e-6, v, u8::from(stale)))
+                .collect();
+            (samples, y.samples, 0)
+        }
+        ReadoutKind::Normalized => {
+            let (sw, sh) = layout.sensor();
+            let mut net = OracleNetwork::new(p, layout);
+            let mut spikes = Vec::new();
+            let mut ignored = 0u64;
+            for (i, e) in rec.events.iter().enumerate() {
+                if e.x >= sw || e.y >= sh {
+                    ignored += 1;
+                }
+                net.event((e.t_us - t0) as f64, e.x, e.y, &mut spikes);
+                if i % 65_536 == 0 {
+                    bar.set_position(i as u64);
+                }
+            }
+            net.flush(last + 1e6, &mut spikes);
+            spikes.sort_by(|a, b| a.0.total_cmp(&b.0));
+            // Spikes up to the last event, as the fixed pipeline counts them.
+            let n = spikes.iter().filter(|s| s.0 <= last).count() as u64;
+            let tau_a = 10_000.0;
+            let (mut a, mut t_a, mut k) = (0.0f64, 0.0f64, 0usize);
+            let mut samples = Vec::new();
+            let mut t = period;
+            while t <= last {
+                while let Some(&(ts, unit)) = spikes.get(k) {
+                    if ts > t {
+                        break;
+                    }
+                    // Right-to-left units (odd ids) count positive, as in the fixed readout.
+                    a = a * (-(ts - t_a) / tau_a).exp() + if unit % 2 == 1 { 1.0 } else { -1.0 };
+                    t_a = ts;
+                    k += 1;
+                }
+                samples.push(((t0 as f64 + t) * 1e-6, a * (-(t - t_a) / tau_a).exp(), 0u8));
+                t += period;
+            }
+            normalize(&mut samples);
+            (samples, n, ignored)
+        }
+    };
+    bar.finish_and_clear();
+    Ok(RunOutput {
+        samples,
+        events: rec.events.len() as u64,
+        outputs,
+        ignored,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Divides by the largest |value| (the paper's normalisation over the whole recording).
+fn normalize(samples: &mut [(f64, f64, u8)]) {
+    let peak = samples.iter().map(|s| s.1.abs()).fold(0.0f64, f64::max);
+    if peak > 0.0 {
+        for s in samples {
+            s.1 /= peak;
         }
     }
 }
@@ -151,7 +316,6 @@ fn run_on_layout<L: Layout>(
     cx: f64,
     period_us: u32,
 ) -> Result<RunOutput> {
-    let stride = layout.stride();
     let mut cells = vec![Cell::default(); layout.cell_count()];
     let mut active = vec![0u32; active_words(layout.cell_count())];
     match args.readout {
@@ -164,18 +328,9 @@ fn run_on_layout<L: Layout>(
                     U16F16::saturating_from_num(cx),
                 )
             };
-            let readout = Calibrated::new(kernel, stride, cal);
-            let net = Network::new(
-                kernel,
-                layout,
-                &mut cells,
-                &mut active,
-                InputFilter::Onsets {
-                    gap_us: ONSET_GAP_US,
-                },
-            )
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-            let mut p = Pipeline::new(net, readout, period_us);
+            let mut p =
+                core_nostd::pipeline::calibrated(kernel, layout, &mut cells, &mut active, cal)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
             let mut out = feed(&mut p, &rec.events, period_us)?;
             out.outputs = p.readout().samples;
             out.ignored = p.network().stats().ignored;
@@ -190,12 +345,7 @@ fn run_on_layout<L: Layout>(
             let st = p.network().stats();
             out.outputs = st.spikes_lr + st.spikes_rl;
             out.ignored = st.ignored;
-            let peak = out.samples.iter().map(|s| s.1.abs()).fold(0.0f64, f64::max);
-            if peak > 0.0 {
-                for s in &mut out.samples {
-                    s.1 /= peak;
-                }
-            }
+            normalize(&mut out.samples);
             Ok(out)
         }
     }
@@ -250,6 +400,29 @@ fn feed<L: Layout, R: Readout>(
     })
 }
 
+/// Writes the run's CSV: `t_s,yaw_rate_rad_s,flags`, or `t_s,yaw_norm` for the normalized
+/// readout.
+pub fn write_yaw_csv(
+    path: &std::path::Path,
+    samples: &[(f64, f64, u8)],
+    normalized: bool,
+) -> Result<()> {
+    write_atomically(path, |w| {
+        if normalized {
+            writeln!(w, "t_s,yaw_norm")?;
+            for (t, v, _) in samples {
+                writeln!(w, "{t:.6},{v:.6}")?;
+            }
+        } else {
+            writeln!(w, "t_s,yaw_rate_rad_s,flags")?;
+            for (t, v, f) in samples {
+                writeln!(w, "{t:.6},{v:.6},{f}")?;
+            }
+        }
+        Ok(())
+    })
+}
+
 /// A progress bar on a terminal, hidden otherwise.
 pub fn progress_bar(len: u64) -> indicatif::ProgressBar {
     use std::io::IsTerminal;
@@ -269,20 +442,7 @@ pub fn run(args: Args) -> Result<()> {
     let rec = formats::read(&args.input, args.format)?;
     let out = run_pipeline(&args, &rec)?;
     let normalized = args.readout == ReadoutKind::Normalized;
-    write_atomically(&args.out, |w| {
-        if normalized {
-            writeln!(w, "t_s,yaw_norm")?;
-            for (t, v, _) in &out.samples {
-                writeln!(w, "{t:.6},{v:.6}")?;
-            }
-        } else {
-            writeln!(w, "t_s,yaw_rate_rad_s,flags")?;
-            for (t, v, f) in &out.samples {
-                writeln!(w, "{t:.6},{v:.6},{f}")?;
-            }
-        }
-        Ok(())
-    })?;
+    write_yaw_csv(&args.out, &out.samples, normalized)?;
     if let Some(plot) = &args.plot {
         let label = if normalized {
             "yaw (normalized)"

@@ -1,0 +1,95 @@
+//! The input stage: bytes from the board's source -> checked frames -> the frame queue.
+
+use core_nostd::aer::frame::{flags, Frame, FrameDecoder, MAX_PAYLOAD};
+use core_nostd::aer::yaw::flags as yaw_flags;
+
+use super::{raise_flags, update_stats, ByteSource, FrameBuf, Msg, Overload, FRAMES};
+
+/// Bytes read from the source per call.
+const CHUNK: usize = 256;
+
+fn copy_frame(f: &Frame<'_>) -> FrameBuf {
+    let mut buf = FrameBuf {
+        kind: f.kind,
+        flags: f.flags,
+        seq: f.seq,
+        len: 0,
+        payload: [0; MAX_PAYLOAD],
+    };
+    let n = f.payload.len().min(MAX_PAYLOAD);
+    if let (Some(dst), Some(src)) = (buf.payload.get_mut(..n), f.payload.get(..n)) {
+        dst.copy_from_slice(src);
+        buf.len = n as u16;
+    }
+    buf
+}
+
+/// Hands one frame to the processing stage according to `mode`.
+async fn deliver(f: FrameBuf, mode: Overload) {
+    if f.flags & flags::SOURCE_OVERFLOW != 0 {
+        raise_flags(yaw_flags::OVERFLOW);
+    }
+    match mode {
+        Overload::Backpressure => FRAMES.send(Msg::Frame(f)).await,
+        Overload::DropFrames => {
+            if FRAMES.try_send(Msg::Frame(f)).is_err() {
+                raise_flags(yaw_flags::OVERFLOW);
+                update_stats(|s| s.frames_overflow += 1);
+            }
+        }
+    }
+}
+
+/// Publishes the decoder's counters and raises INPUT_ERRORS when they grew.
+fn publish(dec: &FrameDecoder, errors_seen: &mut u64) {
+    let st = dec.stats();
+    let errors = st.bad + st.dropped;
+    if errors != *errors_seen {
+        *errors_seen = errors;
+        raise_flags(yaw_flags::INPUT_ERRORS);
+    }
+    update_stats(|s| {
+        s.bytes = st.bytes as u32;
+        s.frames_rx = st.ok as u32;
+        s.frames_bad = st.bad as u32;
+        s.frames_gap = st.dropped as u32;
+        s.source_overflows = st.source_overflows as u32;
+        s.skipped_bytes = st.skipped_bytes as u32;
+    });
+}
+
+/// Runs the input stage until the source ends (never, on a live link); then queues
+/// [`Msg::End`].
+pub async fn run<S: ByteSource>(source: &mut S, mode: Overload) {
+    let mut dec = FrameDecoder::new();
+    let mut chunk = [0u8; CHUNK];
+    let mut errors_seen = 0u64;
+    loop {
+        let n = match source.read(&mut chunk).await {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(_) => {
+                // Bytes were lost: the framer resynchronises by itself at the next frame.
+                raise_flags(yaw_flags::INPUT_ERRORS);
+                update_stats(|s| s.source_errors += 1);
+                continue;
+            }
+        };
+        let mut rest = chunk.get(..n).unwrap_or_default();
+        while !rest.is_empty() {
+            let taken = dec.feed(rest);
+            rest = rest.get(taken..).unwrap_or_default();
+            while let Some(f) = dec.next_frame() {
+                let buf = copy_frame(&f);
+                deliver(buf, mode).await;
+            }
+        }
+        publish(&dec, &mut errors_seen);
+    }
+    while let Some(f) = dec.next_frame_at_end() {
+        let buf = copy_frame(&f);
+        deliver(buf, mode).await;
+    }
+    publish(&dec, &mut errors_seen);
+    FRAMES.send(Msg::End).await;
+}

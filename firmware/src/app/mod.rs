@@ -1,0 +1,192 @@
+//! The application every board runs: bytes in -> AER frames -> events -> processing -> yaw
+//! frames out at 1 kHz.
+//!
+//! ```text
+//!  board ByteSource ──> input() ──FrameQueue──> processing() ──YawSink──> board output
+//!  (SPI DMA ring,       frame decoder,           payload decoder,          (USART, semihosting)
+//!   SPI flash, file)    whole frames only        Pipeline, 1 kHz samples
+//! ```
+//!
+//! The input stage and the processing stage are separate tasks joined by a queue of whole,
+//! checked frames ([`FrameQueue`]). The input stage never waits for processing on a live link
+//! ([`Overload::DropFrames`]): when the queue is full the newest frame is dropped whole and
+//! counted, so a slow consumer can cost frames but never corrupt the byte stream. A replay from
+//! storage ([`Overload::Backpressure`], QEMU) waits instead, so that every frame is processed
+//! and the output is deterministic.
+//!
+//! Boards are thin: they provide a [`ByteSource`], a [`YawSink`], a cost counter
+//! ([`CostMeter`]) and the executor; tasks are spawned by the board because embassy tasks
+//! cannot be generic.
+
+pub mod input;
+pub mod process;
+pub mod processing;
+
+use core::cell::Cell;
+use core::sync::atomic::{AtomicU8, Ordering};
+
+use core_nostd::aer::frame::{Kind, MAX_PAYLOAD};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::CriticalSectionMutex;
+use embassy_sync::channel::Channel;
+
+/// Frames the queue between input and processing holds (each slot ~1 KiB).
+pub const FRAME_QUEUE_LEN: usize = 8;
+
+/// What the input stage does when the frame queue is full.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum Overload {
+    /// Live link: drop the whole new frame and count it (never block the receiver).
+    DropFrames,
+    /// Replay from storage: wait for room (deterministic, nothing dropped).
+    #[cfg_attr(not(feature = "board-qemu"), allow(dead_code))]
+    Backpressure,
+}
+
+/// One checked frame, copied out of the decoder's buffer.
+#[derive(Clone)]
+pub struct FrameBuf {
+    /// Payload kind.
+    pub kind: Kind,
+    /// Header flags.
+    pub flags: u8,
+    /// Sequence counter.
+    pub seq: u16,
+    /// Payload length in bytes (`<= MAX_PAYLOAD`).
+    pub len: u16,
+    /// Payload bytes (`len` valid).
+    pub payload: [u8; MAX_PAYLOAD],
+}
+
+impl FrameBuf {
+    /// The valid payload bytes.
+    pub fn payload(&self) -> &[u8] {
+        self.payload
+            .get(..usize::from(self.len))
+            .unwrap_or_default()
+    }
+}
+
+/// What flows from input to processing.
+// No heap to box the frame into: the queue's slots are frame-sized by design.
+#[allow(clippy::large_enum_variant)]
+pub enum Msg {
+    /// A checked frame.
+    Frame(FrameBuf),
+    /// The byte source ended (replays only): process what is queued, then stop.
+    End,
+}
+
+/// The queue of whole frames between the input and the processing stage.
+pub type FrameQueue = Channel<CriticalSectionRawMutex, Msg, FRAME_QUEUE_LEN>;
+
+/// The queue instance every board uses.
+pub static FRAMES: FrameQueue = Channel::new();
+
+/// Transport flags (bits 4..=7 of the yaw frame's flags) raised since the last yaw frame.
+static PENDING_FLAGS: AtomicU8 = AtomicU8::new(0);
+
+/// Raises transport flags for the next yaw frame.
+pub fn raise_flags(bits: u8) {
+    PENDING_FLAGS.fetch_or(bits, Ordering::Relaxed);
+}
+
+/// Takes (and clears) the transport flags raised since the previous call.
+pub fn take_flags() -> u8 {
+    PENDING_FLAGS.swap(0, Ordering::Relaxed)
+}
+
+/// Counters of the whole application (32-bit: they wrap after 4e9).
+#[derive(Clone, Copy, Debug, Default, defmt::Format)]
+pub struct Stats {
+    /// Bytes received from the source.
+    pub bytes: u32,
+    /// Intact frames received (by the frame decoder).
+    pub frames_rx: u32,
+    /// Frames rejected (CRC, header).
+    pub frames_bad: u32,
+    /// Frames missing from the sequence numbers.
+    pub frames_gap: u32,
+    /// Intact frames dropped because the queue was full.
+    pub frames_overflow: u32,
+    /// Frames that arrived with the sender's SOURCE_OVERFLOW flag.
+    pub source_overflows: u32,
+    /// Bytes that were not part of an intact frame.
+    pub skipped_bytes: u32,
+    /// Source read errors (DMA ring overruns).
+    pub source_errors: u32,
+    /// Frames processed.
+    pub frames_processed: u32,
+    /// Events processed.
+    pub events: u32,
+    /// EVT 3.0 words of undefined types.
+    pub decoder_errors: u32,
+    /// Yaw frames written.
+    pub yaw_out: u32,
+    /// Yaw frames the sink had no room for.
+    pub yaw_dropped: u32,
+    /// Cost of the processing (pipeline calls only), in [`CostMeter`] units.
+    pub cost_units: u64,
+}
+
+/// The counters every board reads.
+pub static STATS: CriticalSectionMutex<Cell<Stats>> = CriticalSectionMutex::new(Cell::new(Stats {
+    bytes: 0,
+    frames_rx: 0,
+    frames_bad: 0,
+    frames_gap: 0,
+    frames_overflow: 0,
+    source_overflows: 0,
+    skipped_bytes: 0,
+    source_errors: 0,
+    frames_processed: 0,
+    events: 0,
+    decoder_errors: 0,
+    yaw_out: 0,
+    yaw_dropped: 0,
+    cost_units: 0,
+}));
+
+/// Changes the counters.
+pub fn update_stats(f: impl FnOnce(&mut Stats)) {
+    STATS.lock(|s| {
+        let mut v = s.get();
+        f(&mut v);
+        s.set(v);
+    });
+}
+
+/// A snapshot of the counters.
+pub fn stats() -> Stats {
+    STATS.lock(Cell::get)
+}
+
+/// Where the AER byte stream comes from.
+pub trait ByteSource {
+    /// Fills the front of `buf` with the next bytes; `Ok(0)` means the stream ended (a live
+    /// link never ends). May wait.
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, SourceError>;
+}
+
+/// A source lost bytes (the DMA ring was overrun); reading goes on.
+#[derive(Clone, Copy, Debug, defmt::Format)]
+pub struct SourceError;
+
+/// Where yaw frames go. Synchronous so the processing stage never waits on output: a sink
+/// without room returns `false` and the frame is counted as dropped.
+pub trait YawSink {
+    /// Queues one encoded yaw frame.
+    fn write(&mut self, frame: &[u8; core_nostd::aer::yaw::FRAME_BYTES]) -> bool;
+}
+
+/// A free-running counter to measure the processing cost.
+pub trait CostMeter {
+    /// What one unit counts ("instructions" under QEMU -icount, "cycles" on hardware).
+    const UNIT: &'static str;
+    /// Units of the raw counter's one step (QEMU: 40 instructions per SysTick tick).
+    const UNITS_PER_TICK: u32;
+    /// The raw counter now.
+    fn now() -> u32;
+    /// Ticks from `earlier` to `later` (handles the counter's wrap).
+    fn ticks(earlier: u32, later: u32) -> u32;
+}

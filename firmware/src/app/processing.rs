@@ -1,0 +1,163 @@
+//! The processing stage: checked frames -> events -> [`Pipeline`] -> yaw frames.
+//!
+//! Yaw samples follow event time: the pipeline emits the samples due before each event, on the
+//! 1 kHz grid of event timestamps, however fast the events are replayed; at the end of a replay
+//! it is polled up to the last event's time (as `host-sim run` does). On a live link ([`Clock::Live`]) the MCU clock also drives the output when
+//! no events arrive: after [`LIVE_MARGIN_US`] without a frame, event time is extrapolated from
+//! the last event with the MCU clock (flag CLOCK), and the pipeline flags samples STALE once
+//! 100 ms have passed without events.
+
+use core_nostd::aer::events::PayloadDecoder;
+use core_nostd::aer::yaw::{flags, YawFrame};
+use core_nostd::layout::Layout;
+use embassy_futures::select::{select, Either};
+use embassy_time::{Duration, Instant, Timer};
+use fixed::types::I16F16;
+
+use super::process::{Processor, YawSample};
+use super::{take_flags, update_stats, CostMeter, Msg, YawSink, FRAMES};
+
+/// Whether the MCU clock drives the output when no events arrive.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum Clock {
+    /// Replay: output follows event time only (deterministic).
+    #[cfg_attr(not(feature = "board-qemu"), allow(dead_code))]
+    EventTimeOnly,
+    /// Live link: the MCU clock takes over when events stop.
+    Live,
+}
+
+/// On a live link, how long (µs) after the last frame the clock takes over. Frames span up to
+/// 1 ms and take time to arrive, so the clock stays this far behind to not emit samples that
+/// events still in flight belong to.
+pub const LIVE_MARGIN_US: u32 = 5_000;
+
+/// Output state: sequence counter and counters.
+struct Out<'s, K: YawSink> {
+    sink: &'s mut K,
+    seq: u8,
+}
+
+impl<K: YawSink> Out<'_, K> {
+    fn emit(&mut self, s: YawSample, extra: u8) {
+        let frame = YawFrame {
+            seq: self.seq,
+            flags: s.flags | take_flags() | extra,
+            t_us: s.t_us,
+            yaw_rate: s.yaw_rate,
+        };
+        self.seq = self.seq.wrapping_add(1);
+        if self.sink.write(&frame.encode()) {
+            update_stats(|st| st.yaw_out += 1);
+        } else {
+            super::raise_flags(flags::OVERFLOW);
+            update_stats(|st| st.yaw_dropped += 1);
+        }
+    }
+}
+
+/// Runs the processing stage until [`Msg::End`] (replays) or forever (live).
+pub async fn run<L: Layout, K: YawSink, M: CostMeter>(
+    pipeline: &mut Processor<'_, L>,
+    sink: &mut K,
+    clock: Clock,
+) {
+    let mut payload = PayloadDecoder::new();
+    let mut out = Out { sink, seq: 0 };
+    let mut decoder_errors = 0u64;
+    // Live clock: last event time and when it was processed.
+    let mut last: Option<(u32, Instant)> = None;
+    let start = Instant::now();
+    let mut idle_tick: u32 = 0;
+    loop {
+        let msg = match clock {
+            Clock::EventTimeOnly => FRAMES.receive().await,
+            Clock::Live => {
+                let deadline = Instant::now() + Duration::from_micros(u64::from(LIVE_MARGIN_US));
+                match select(FRAMES.receive(), Timer::at(deadline)).await {
+                    Either::First(m) => m,
+                    Either::Second(()) => {
+                        clock_tick(pipeline, &mut out, last, start, &mut idle_tick);
+                        continue;
+                    }
+                }
+            }
+        };
+        let frame = match msg {
+            Msg::Frame(f) => f,
+            Msg::End => {
+                // As `host-sim run`: the samples due up to the last event's time.
+                if let Some((t, _)) = last {
+                    pipeline.poll(t, &mut |s| out.emit(s, 0));
+                }
+                return;
+            }
+        };
+        let f = core_nostd::aer::frame::Frame {
+            kind: frame.kind,
+            flags: frame.flags,
+            seq: frame.seq,
+            payload: frame.payload(),
+        };
+        let mut cost: u64 = 0;
+        let mut events: u32 = 0;
+        let mut last_t = None;
+        payload.frame(&f, |ev| {
+            let a = M::now();
+            pipeline.event(ev, &mut |s| out.emit(s, 0));
+            let b = M::now();
+            cost += u64::from(M::ticks(a, b));
+            events += 1;
+            last_t = Some(ev.t_us);
+        });
+        if let Some(t) = last_t {
+            last = Some((t, Instant::now()));
+        }
+        let e3 = payload.stats().evt3.invalid;
+        if e3 != decoder_errors {
+            decoder_errors = e3;
+            super::raise_flags(flags::DECODER_ERRORS);
+        }
+        update_stats(|st| {
+            st.frames_processed += 1;
+            st.events = st.events.wrapping_add(events);
+            st.cost_units += cost * u64::from(M::UNITS_PER_TICK);
+            st.decoder_errors = e3 as u32;
+        });
+        // Let the input stage run between frames.
+        embassy_futures::yield_now().await;
+    }
+}
+
+/// Live clock without frames: extrapolates event time from the last event and polls.
+fn clock_tick<L: Layout, K: YawSink>(
+    pipeline: &mut Processor<'_, L>,
+    out: &mut Out<'_, K>,
+    last: Option<(u32, Instant)>,
+    start: Instant,
+    idle_tick: &mut u32,
+) {
+    match last {
+        Some((t, at)) => {
+            let since = (Instant::now() - at).as_micros();
+            let since = since.saturating_sub(u64::from(LIVE_MARGIN_US));
+            let est = t.wrapping_add(since.min(u64::from(u32::MAX >> 1)) as u32);
+            pipeline.poll(est, &mut |s| out.emit(s, flags::CLOCK));
+        }
+        None => {
+            // No event yet: stale samples on the MCU clock, yaw rate 0.
+            let now_us = (Instant::now() - start).as_micros() as u32;
+            while now_us.wrapping_sub(*idle_tick) < 1 << 31 {
+                out.emit(
+                    YawSample {
+                        t_us: *idle_tick,
+                        yaw_rate: I16F16::ZERO,
+                        flags: flags::STALE,
+                    },
+                    flags::CLOCK,
+                );
+                *idle_tick = idle_tick.wrapping_add(1_000);
+            }
+        }
+    }
+}

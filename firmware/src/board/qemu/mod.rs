@@ -1,0 +1,329 @@
+//! The QEMU board: `qemu-system-arm -M mps2-an386` (Cortex-M4F, 25 MHz), no HAL.
+//!
+//! - Events in: the AER stream from an emulated `n25q128` SPI NOR flash on the PL022
+//!   (`--input spi`, the default: the same byte path as a real SPI link, ~7 MB/s), or from a
+//!   host file through semihosting (`--input file`, ~400 MB/s, for streams over 16 MiB).
+//! - Yaw frames out: `yaw.bin` through semihosting; logs: defmt over semihosting (stdout);
+//!   counters: `summary.txt`; exit code through semihosting (0 = ran to the end).
+//! - Time: SysTick (see [`time`]); the executor idles in WFI (see [`executor`]).
+//! - Replay (default): the input waits for the processing (deterministic, bit-exact with the
+//!   host). `--live`: frames are dropped whole when processing falls behind and the clock
+//!   drives stale output, as on the flight controller.
+//!
+//! Arguments (semihosting command line): `--input spi|file`, `--bytes N` (stream length in
+//! the flash), `--width W --height H` (sensor), `--layout dense|paper-boxes`, `--stride S`,
+//! `--window X0:Y0:W:H` (dense window; default: the whole sensor), `--focal-bits F --cx-bits C`
+//! (intrinsics as U16F16 bits, px), `--period-us P` (default 1000), `--live`.
+
+pub mod executor;
+pub mod host;
+pub mod pl022;
+pub mod time;
+
+use core::fmt::Write as _;
+use core::mem::MaybeUninit;
+
+use core_nostd::fixed::types::U16F16;
+use core_nostd::layout::{Dense, Layout, PaperBoxes};
+use core_nostd::unit::Kernel;
+use defmt_semihosting as _;
+use static_cell::StaticCell;
+
+use crate::app::process::{self, active_words, Cell, ProcessConfig};
+use crate::app::processing::{self, Clock};
+use crate::app::{self, ByteSource, CostMeter, Overload, SourceError};
+use time::SysTickMeter;
+
+/// Network cells available in PSRAM (16 MiB / 24 B, rounded down).
+const MAX_CELLS: usize = 680_000;
+
+#[link_section = ".psram"]
+static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
+
+/// The network's active-cell bitmap (zeroed `.bss`).
+static mut ACTIVE: [u32; active_words(MAX_CELLS)] = [0; active_words(MAX_CELLS)];
+
+/// Seed of the paper-boxes placement, as `host-sim run`.
+const BOXES_SEED: u64 = PaperBoxes::DEFAULT_SEED;
+
+/// The default TDE parameters (tables computed at compile time).
+static KERNEL: Kernel = Kernel::DEFAULT;
+
+/// Exit codes.
+mod exit {
+    /// Ran to the end of the stream.
+    pub const OK: i32 = 0;
+    /// Bad command line or layout.
+    pub const CONFIG: i32 = 2;
+    /// The input could not be opened.
+    pub const INPUT: i32 = 3;
+    /// A panic (see the defmt log).
+    pub const PANIC: i32 = 101;
+}
+
+/// Run configuration from the command line.
+#[derive(Clone, Copy, Debug, defmt::Format)]
+struct Config {
+    spi: bool,
+    bytes: u32,
+    width: u16,
+    height: u16,
+    stride: u16,
+    boxes: bool,
+    window: Option<(u16, u16, u16, u16)>,
+    /// Focal length, U16F16 bits (px).
+    focal_bits: u32,
+    /// Principal point column, U16F16 bits (px).
+    cx_bits: u32,
+    period_us: u32,
+    live: bool,
+}
+
+impl Config {
+    fn parse() -> Result<Self, &'static str> {
+        let mut c = Config {
+            spi: true,
+            bytes: 0,
+            width: 346,
+            height: 260,
+            stride: 2,
+            boxes: false,
+            window: None,
+            focal_bits: 0,
+            cx_bits: 0,
+            period_us: 1_000,
+            live: false,
+        };
+        let mut key: Option<heapless::String<16>> = None;
+        let mut err = None;
+        host::for_each_arg(|a| {
+            let Some(k) = key.take() else {
+                match a {
+                    "--live" => c.live = true,
+                    _ => key = heapless::String::try_from(a).ok(),
+                }
+                return;
+            };
+            let num = |s: &str| s.parse::<u32>().ok();
+            let ok = match k.as_str() {
+                "--input" => {
+                    c.spi = a == "spi";
+                    a == "spi" || a == "file"
+                }
+                "--bytes" => num(a).map(|v| c.bytes = v).is_some(),
+                "--width" => num(a).map(|v| c.width = v as u16).is_some(),
+                "--height" => num(a).map(|v| c.height = v as u16).is_some(),
+                "--stride" => num(a).map(|v| c.stride = v as u16).is_some(),
+                "--layout" => {
+                    c.boxes = a == "paper-boxes";
+                    a == "dense" || a == "paper-boxes"
+                }
+                "--focal-bits" => num(a).map(|v| c.focal_bits = v).is_some(),
+                "--cx-bits" => num(a).map(|v| c.cx_bits = v).is_some(),
+                "--period-us" => num(a).filter(|v| *v > 0).map(|v| c.period_us = v).is_some(),
+                "--window" => {
+                    let mut it = a.split(':').filter_map(num);
+                    match (it.next(), it.next(), it.next(), it.next()) {
+                        (Some(x), Some(y), Some(w), Some(h)) => {
+                            c.window = Some((x as u16, y as u16, w as u16, h as u16));
+                            true
+                        }
+                        _ => false,
+                    }
+                }
+                _ => false,
+            };
+            if !ok {
+                err = Some("bad argument");
+            }
+        });
+        if c.focal_bits == 0 {
+            err = Some("--focal-bits is required");
+        }
+        match err {
+            Some(e) => Err(e),
+            None => Ok(c),
+        }
+    }
+
+    fn dense(&self) -> Option<Dense> {
+        let (x0, y0, w, h) = self.window.unwrap_or((0, 0, self.width, self.height));
+        Dense::window(self.width, self.height, x0, y0, w, h, self.stride)
+    }
+
+    fn boxes(&self) -> Option<PaperBoxes> {
+        PaperBoxes::with_stride(self.width, self.height, self.stride, BOXES_SEED)
+    }
+
+    fn process(&self) -> ProcessConfig {
+        ProcessConfig {
+            focal_px: U16F16::from_bits(self.focal_bits),
+            cx: U16F16::from_bits(self.cx_bits),
+            period_us: self.period_us,
+        }
+    }
+}
+
+/// The two ways the stream comes in.
+enum Source {
+    Spi(pl022::SpiFlash),
+    File(host::HostFile),
+}
+
+impl ByteSource for Source {
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, SourceError> {
+        match self {
+            Source::Spi(s) => s.read(buf).await,
+            Source::File(f) => f.read(buf).await,
+        }
+    }
+}
+
+fn quit(code: i32) -> ! {
+    semihosting::process::exit(code)
+}
+
+#[embassy_executor::task]
+async fn input_task(source: &'static mut Source, mode: Overload) {
+    app::input::run(source, mode).await;
+}
+
+#[embassy_executor::task]
+async fn main_task(cfg: Config) {
+    if cfg.boxes {
+        match cfg.boxes() {
+            Some(l) => run_layout(&cfg, l).await,
+            None => config_error("the paper boxes do not fit the sensor"),
+        }
+    } else {
+        match cfg.dense().filter(|l| l.cell_count() <= MAX_CELLS) {
+            Some(l) => run_layout(&cfg, l).await,
+            None => config_error("bad dense layout (window outside the sensor, or too many cells)"),
+        }
+    }
+}
+
+fn config_error(msg: &str) -> ! {
+    defmt::error!("{}", msg);
+    quit(exit::CONFIG)
+}
+
+async fn run_layout<L: Layout>(cfg: &Config, layout: L) {
+    let needed = layout.cell_count();
+    if needed > MAX_CELLS {
+        config_error("the layout has too many cells");
+    }
+    // SAFETY: CELLS and ACTIVE are only touched here, once; the first `needed` cells are
+    // written before the slice over them is made (PSRAM is not zeroed: the section is NOLOAD).
+    let (cells, active): (&'static mut [Cell], &'static mut [u32]) = unsafe {
+        let base = core::ptr::addr_of_mut!(CELLS).cast::<Cell>();
+        for i in 0..needed {
+            base.add(i).write(Cell::default());
+        }
+        (
+            core::slice::from_raw_parts_mut(base, needed),
+            &mut *core::ptr::addr_of_mut!(ACTIVE),
+        )
+    };
+    let mut pipeline = match process::build(&KERNEL, layout, cells, active, &cfg.process()) {
+        Ok(p) => p,
+        Err(_) => config_error("cannot build the network"),
+    };
+    let mut sink = host::YawFile::create();
+    let clock = if cfg.live {
+        Clock::Live
+    } else {
+        Clock::EventTimeOnly
+    };
+    processing::run::<_, _, SysTickMeter>(&mut pipeline, &mut sink, clock).await;
+    sink.flush();
+    let s = app::stats();
+    let per_event = if s.events == 0 {
+        0
+    } else {
+        (s.cost_units + u64::from(s.events) / 2) / u64::from(s.events)
+    };
+    let mut line: heapless::String<512> = heapless::String::new();
+    let _ = write!(
+        line,
+        "events={} frames_ok={} frames_bad={} frames_dropped={} instructions_per_event={}\n\
+         detail: bytes={} frames_received={} frames_gap={} frames_overflow={} source_overflows={} \
+         skipped_bytes={} source_errors={} decoder_errors={} yaw_frames={} yaw_dropped={} \
+         yaw_write_errors={} cells={} {}={}\n",
+        s.events,
+        s.frames_processed,
+        s.frames_bad,
+        s.frames_gap + s.frames_overflow,
+        per_event,
+        s.bytes,
+        s.frames_rx,
+        s.frames_gap,
+        s.frames_overflow,
+        s.source_overflows,
+        s.skipped_bytes,
+        s.source_errors,
+        s.decoder_errors,
+        s.yaw_out,
+        s.yaw_dropped,
+        sink.errors,
+        needed,
+        SysTickMeter::UNIT,
+        s.cost_units,
+    );
+    defmt::info!("{}", line.as_str());
+    if !host::write_summary(&line) || sink.errors > 0 {
+        defmt::error!("cannot write the output files");
+        quit(exit::INPUT);
+    }
+    quit(exit::OK)
+}
+
+/// Entry point of the QEMU board.
+pub fn main() -> ! {
+    let Some(cp) = cortex_m::Peripherals::take() else {
+        quit(exit::PANIC)
+    };
+    time::init(cp.SYST);
+    let cfg = match Config::parse() {
+        Ok(c) => c,
+        Err(e) => {
+            defmt::error!("{}", e);
+            quit(exit::CONFIG)
+        }
+    };
+    defmt::info!("qemu board: {}", cfg);
+    static SOURCE: StaticCell<Source> = StaticCell::new();
+    let source = if cfg.spi {
+        Source::Spi(pl022::SpiFlash::start(cfg.bytes))
+    } else {
+        match host::HostFile::open() {
+            Some(f) => Source::File(f),
+            None => {
+                defmt::error!("cannot open events.aer");
+                quit(exit::INPUT)
+            }
+        }
+    };
+    let source = SOURCE.init(source);
+    let mode = if cfg.live {
+        Overload::DropFrames
+    } else {
+        Overload::Backpressure
+    };
+    executor::run(|spawner| {
+        match input_task(source, mode) {
+            Ok(t) => spawner.spawn(t),
+            Err(_) => quit(exit::PANIC),
+        }
+        match main_task(cfg) {
+            Ok(t) => spawner.spawn(t),
+            Err(_) => quit(exit::PANIC),
+        }
+    })
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    quit(exit::PANIC)
+}

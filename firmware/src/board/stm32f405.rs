@@ -1,0 +1,300 @@
+//! The STM32F405RG board (Crazyflie-class and many Betaflight flight controllers), 168 MHz.
+//!
+//! - Events in: SPI1 as a **slave** (the sensor bridge is the master; SCK PA5, MOSI PA7,
+//!   MISO PA6, NSS PA4), received by DMA2 stream 0 (channel 3) in circular mode into a 4 KiB
+//!   ring in SRAM (`dma::ReadableRingBuffer` on the SPI data register; RX DMA enabled through
+//!   the PAC). The input task runs on a higher-priority interrupt executor, so processing
+//!   never delays it; a ring overrun is counted and the framer resynchronises.
+//! - Yaw frames out: USART1 TX (PA9) at 921 600 baud by DMA2 stream 7 (14 kB/s needed).
+//! - Logs: defmt over RTT; panics: panic-probe (reported over RTT by probe-rs).
+//! - Memory: network cells in the 64 KiB CCM (CPU only), DMA buffers and everything else in
+//!   the 128 KiB SRAM (`memory.x` at the repo root).
+//! - Live link: whole frames are dropped when processing falls behind, and the clock drives
+//!   stale output when no events arrive.
+//!
+//! Flash and run: `cargo xtask flash`, or `cargo f405-run` in `firmware/` (both use
+//! `probe-rs run --chip STM32F405RGTx`; install with `cargo install probe-rs-tools --locked`).
+
+use core::mem::MaybeUninit;
+
+use core_nostd::aer::yaw::FRAME_BYTES;
+use core_nostd::fixed::types::U16F16;
+use core_nostd::layout::{Dense, Layout, PaperBoxes};
+use core_nostd::unit::Kernel;
+use cortex_m::peripheral::DWT;
+use defmt_rtt as _;
+use embassy_executor::{Executor, InterruptExecutor};
+use embassy_stm32::dma::{self, ReadableRingBuffer, TransferOptions};
+use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::usart::{self, UartTx};
+use embassy_stm32::{bind_interrupts, pac, peripherals, spi};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_time::Timer;
+use panic_probe as _;
+use static_cell::StaticCell;
+
+use crate::app::process::{self, active_words, Cell, ProcessConfig};
+use crate::app::processing::{self, Clock};
+use crate::app::{self, ByteSource, CostMeter, Overload, SourceError, YawSink};
+
+bind_interrupts!(struct Irqs {
+    DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
+    DMA2_STREAM7 => dma::InterruptHandler<peripherals::DMA2_CH7>;
+});
+
+/// Sensor: DAVIS346, 346 x 260 px, f = 226 px.
+const SENSOR: (u16, u16) = (346, 260);
+/// Focal length (px) and principal point column (px), U16F16.
+const FOCAL_PX: U16F16 = U16F16::const_from_int(226);
+const CX: U16F16 = U16F16::from_bits(172 << 16 | 0x8000);
+/// Which network runs.
+const LAYOUT: BoardLayout = BoardLayout::PaperBoxes;
+/// The largest dense window that fits the CCM: 128 x 20 pixels (2560 cells, 61 440 B,
+/// 10 000 units), centred.
+const DENSE_WINDOW: (u16, u16, u16, u16) = ((346 - 128) / 2, (260 - 20) / 2, 128, 20);
+/// Cells reserved in CCM (the larger of the two layouts).
+const MAX_CELLS: usize = 2560;
+/// SPI DMA ring size (bytes): 4 KiB is ~2 ms at 2 MB/s.
+const RING_BYTES: usize = 4096;
+/// SPI1 RX request on DMA2 stream 0 (channel 3).
+const SPI1_RX_REQUEST: u8 = 3;
+
+/// The network layouts this board can run.
+#[allow(dead_code)]
+enum BoardLayout {
+    /// The paper's two 20 x 20 boxes (800 cells).
+    PaperBoxes,
+    /// [`DENSE_WINDOW`].
+    DenseWindow,
+}
+
+#[link_section = ".ccmram"]
+static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
+static mut ACTIVE: [u32; active_words(MAX_CELLS)] = [0; active_words(MAX_CELLS)];
+static mut RING: [u8; RING_BYTES] = [0; RING_BYTES];
+
+static KERNEL: Kernel = Kernel::DEFAULT;
+
+/// Yaw frames waiting for the USART.
+static YAW_OUT: Channel<CriticalSectionRawMutex, [u8; FRAME_BYTES], 64> = Channel::new();
+
+static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
+static EXECUTOR_LOW: StaticCell<Executor> = StaticCell::new();
+
+#[embassy_stm32::interrupt]
+unsafe fn UART4() {
+    // SAFETY: UART4 is unused as a peripheral; its interrupt only runs this executor.
+    unsafe { EXECUTOR_HIGH.on_interrupt() }
+}
+
+/// The SPI DMA ring as a byte source.
+struct SpiRing {
+    ring: ReadableRingBuffer<'static, u8>,
+}
+
+impl ByteSource for SpiRing {
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, SourceError> {
+        loop {
+            match self.ring.read(buf) {
+                Ok((0, _)) => Timer::after_micros(200).await,
+                Ok((n, _)) => return Ok(n),
+                Err(_) => {
+                    self.ring.clear();
+                    return Err(SourceError);
+                }
+            }
+        }
+    }
+}
+
+/// Yaw frames into [`YAW_OUT`] (dropped and counted when full).
+struct UartSink;
+
+impl YawSink for UartSink {
+    fn write(&mut self, frame: &[u8; FRAME_BYTES]) -> bool {
+        YAW_OUT.try_send(*frame).is_ok()
+    }
+}
+
+/// Cycles of the DWT cycle counter.
+struct CycleMeter;
+
+impl CostMeter for CycleMeter {
+    const UNIT: &'static str = "cycles";
+    const UNITS_PER_TICK: u32 = 1;
+
+    fn now() -> u32 {
+        DWT::cycle_count()
+    }
+
+    fn ticks(earlier: u32, later: u32) -> u32 {
+        later.wrapping_sub(earlier)
+    }
+}
+
+#[embassy_executor::task]
+async fn input_task(mut source: SpiRing) {
+    app::input::run(&mut source, Overload::DropFrames).await;
+}
+
+#[embassy_executor::task]
+async fn output_task(mut tx: UartTx<'static, embassy_stm32::mode::Async>) {
+    let mut buf = [0u8; FRAME_BYTES * 16];
+    loop {
+        let first = YAW_OUT.receive().await;
+        let mut n = 0;
+        for (dst, src) in buf
+            .chunks_exact_mut(FRAME_BYTES)
+            .zip(core::iter::once(first).chain(core::iter::from_fn(|| YAW_OUT.try_receive().ok())))
+        {
+            dst.copy_from_slice(&src);
+            n += FRAME_BYTES;
+        }
+        if tx.write(buf.get(..n).unwrap_or_default()).await.is_err() {
+            defmt::warn!("usart write failed");
+        }
+    }
+}
+
+/// Logs the counters once a second.
+#[embassy_executor::task]
+async fn status_task() {
+    loop {
+        Timer::after_secs(1).await;
+        let s = app::stats();
+        let per_event = s.cost_units / u64::from(s.events.max(1));
+        defmt::info!("{} ({}/event: {})", s, CycleMeter::UNIT, per_event);
+    }
+}
+
+#[embassy_executor::task]
+async fn process_task() {
+    match LAYOUT {
+        BoardLayout::PaperBoxes => match PaperBoxes::with_stride(SENSOR.0, SENSOR.1, 2, 1) {
+            Some(l) => run_layout(l).await,
+            None => defmt::panic!("paper boxes do not fit"),
+        },
+        BoardLayout::DenseWindow => {
+            let (x0, y0, w, h) = DENSE_WINDOW;
+            match Dense::window(SENSOR.0, SENSOR.1, x0, y0, w, h, 2) {
+                Some(l) => run_layout(l).await,
+                None => defmt::panic!("dense window does not fit"),
+            }
+        }
+    }
+}
+
+async fn run_layout<L: Layout>(layout: L) {
+    let needed = layout.cell_count().min(MAX_CELLS);
+    // SAFETY: CELLS and ACTIVE are only touched here, once; the cells are written before the
+    // slice over them is made (CCM is not zeroed: the section is NOLOAD).
+    let (cells, active): (&'static mut [Cell], &'static mut [u32]) = unsafe {
+        let base = core::ptr::addr_of_mut!(CELLS).cast::<Cell>();
+        for i in 0..needed {
+            base.add(i).write(Cell::default());
+        }
+        (
+            core::slice::from_raw_parts_mut(base, needed),
+            &mut *core::ptr::addr_of_mut!(ACTIVE),
+        )
+    };
+    let cfg = ProcessConfig {
+        focal_px: FOCAL_PX,
+        cx: CX,
+        period_us: 1_000,
+    };
+    let mut pipeline = match process::build(&KERNEL, layout, cells, active, &cfg) {
+        Ok(p) => p,
+        Err(_) => defmt::panic!("the layout needs more than {} cells", MAX_CELLS),
+    };
+    defmt::info!("processing: {} cells", needed);
+    processing::run::<_, _, CycleMeter>(&mut pipeline, &mut UartSink, Clock::Live).await;
+}
+
+fn rcc_config() -> embassy_stm32::Config {
+    use embassy_stm32::rcc::*;
+    let mut config = embassy_stm32::Config::default();
+    config.rcc.hse = Some(Hse {
+        freq: Hertz(8_000_000),
+        mode: HseMode::Oscillator,
+    });
+    config.rcc.pll_src = PllSource::HSE;
+    config.rcc.pll = Some(Pll {
+        prediv: PllPreDiv::DIV4,
+        mul: PllMul::MUL168,
+        divp: Some(PllPDiv::DIV2), // 168 MHz
+        divq: Some(PllQDiv::DIV7),
+        divr: None,
+    });
+    config.rcc.ahb_pre = AHBPrescaler::DIV1;
+    config.rcc.apb1_pre = APBPrescaler::DIV4;
+    config.rcc.apb2_pre = APBPrescaler::DIV2;
+    config.rcc.sys = Sysclk::PLL1_P;
+    config
+}
+
+/// Entry point of the STM32F405 board.
+pub fn main() -> ! {
+    let p = embassy_stm32::init(rcc_config());
+    if let Some(mut cp) = cortex_m::Peripherals::take() {
+        cp.DCB.enable_trace();
+        cp.DWT.enable_cycle_counter();
+    }
+    defmt::info!("stm32f405: TDE firmware");
+
+    // SPI1 slave, RX by DMA into the ring.
+    let mut spi_cfg = spi::Config::default();
+    spi_cfg.mode = spi::MODE_0;
+    let spi = spi::Spi::new_blocking_slave(p.SPI1, p.PA5, p.PA7, p.PA6, p.PA4, spi_cfg);
+    // The driver must stay alive (dropping it disables SPI1).
+    static SPI: StaticCell<spi::Spi<'static, embassy_stm32::mode::Blocking, spi::mode::Slave>> =
+        StaticCell::new();
+    SPI.init(spi);
+    pac::SPI1.cr2().modify(|w| w.set_rxdmaen(true));
+    let channel = dma::Channel::new(p.DMA2_CH0, Irqs);
+    // SAFETY: RING is used by this DMA ring only, for the rest of the program; the peripheral
+    // address is SPI1's data register.
+    let mut ring = unsafe {
+        ReadableRingBuffer::new(
+            channel,
+            SPI1_RX_REQUEST,
+            pac::SPI1.dr().as_ptr() as *mut u8,
+            &mut *core::ptr::addr_of_mut!(RING),
+            TransferOptions::default(),
+        )
+    };
+    ring.start();
+
+    // USART1 TX by DMA.
+    let mut uart_cfg = usart::Config::default();
+    uart_cfg.baudrate = 921_600;
+    let tx = match UartTx::new(p.USART1, p.PA9, p.DMA2_CH7, Irqs, uart_cfg) {
+        Ok(tx) => tx,
+        Err(_) => defmt::panic!("usart config"),
+    };
+
+    // Input on a higher-priority executor: it preempts processing.
+    interrupt::UART4.set_priority(Priority::P6);
+    let high = EXECUTOR_HIGH.start(interrupt::UART4);
+    match input_task(SpiRing { ring }) {
+        Ok(t) => high.spawn(t),
+        Err(_) => defmt::panic!("spawn input"),
+    }
+    let executor = EXECUTOR_LOW.init(Executor::new());
+    executor.run(|spawner| {
+        match process_task() {
+            Ok(t) => spawner.spawn(t),
+            Err(_) => defmt::panic!("spawn process"),
+        }
+        match output_task(tx) {
+            Ok(t) => spawner.spawn(t),
+            Err(_) => defmt::panic!("spawn output"),
+        }
+        match status_task() {
+            Ok(t) => spawner.spawn(t),
+            Err(_) => defmt::panic!("spawn status"),
+        }
+    })
+}

@@ -1,0 +1,167 @@
+//! The AER-over-SPI byte stream on the host (format: `docs/wire-formats.md`,
+//! `core_nostd::aer`): writing it from a recording, reading it back, and the hidden
+//! `host-sim aer-stream` command that `cargo xtask qemu` uses to feed the emulated firmware.
+//!
+//! Event times on the wire are `u32` µs relative to the recording's first event (wrapping), the
+//! clock `host-sim run` gives its pipeline; the first event's absolute time (`t0_us`) is
+//! returned so that outputs can be put back on the recording's clock.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use core_nostd::aer::events::{EventEncoder, Receiver};
+use core_nostd::aer::frame::{FrameStats, SYNC};
+use core_nostd::event::Event;
+use core_nostd::fixed::types::U16F16;
+
+use crate::formats::{self, Format, HostEvent};
+use crate::output::write_atomically;
+
+/// Encodes events as an AER stream; returns the bytes and the time origin (the first event's
+/// time, µs; 0 without events).
+///
+/// # Errors
+/// When an event's coordinates do not fit the format (0..=2047).
+pub fn encode_aer(events: &[HostEvent]) -> Result<(Vec<u8>, u64)> {
+    let t0 = events.first().map_or(0, |e| e.t_us);
+    let mut enc = EventEncoder::new();
+    let mut wire = Vec::with_capacity(events.len() * 4 + 64);
+    for (i, e) in events.iter().enumerate() {
+        let ev = Event {
+            t_us: e.t_us.wrapping_sub(t0) as u32,
+            x: e.x,
+            y: e.y,
+            on: e.on,
+        };
+        enc.push(ev, |f| wire.extend_from_slice(f))
+            .map_err(|err| anyhow::anyhow!("event {i}: {err}"))?;
+    }
+    enc.flush(|f| wire.extend_from_slice(f));
+    Ok((wire, t0))
+}
+
+/// Writes `events` as an AER stream file (complete or absent); returns the time origin.
+///
+/// # Errors
+/// When an event does not fit the format or the file cannot be written.
+pub fn write_aer(events: &[HostEvent], path: &Path) -> Result<u64> {
+    let (wire, t0) = encode_aer(events)?;
+    write_atomically(path, |w| {
+        w.write_all(&wire)
+            .with_context(|| format!("cannot write {}", path.display()))
+    })?;
+    Ok(t0)
+}
+
+/// Decodes an AER stream (any corruption tolerated) into events and the frame counters.
+pub fn decode_aer(bytes: &[u8]) -> (Vec<Event>, FrameStats) {
+    let mut rx = Receiver::new();
+    let mut out = Vec::new();
+    rx.push(bytes, |e| out.push(e));
+    rx.finish(|e| out.push(e));
+    (out, rx.frame_stats())
+}
+
+/// Whether `head` (the first bytes of a file) starts with an AER frame's sync pattern.
+pub fn looks_like_aer(head: &[u8]) -> bool {
+    head.starts_with(&SYNC)
+}
+
+/// `host-sim aer-stream`: a recording to the AER stream, plus what the firmware needs to
+/// process it like `host-sim run` (hidden; used by `cargo xtask qemu`).
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Input recording (any format `host-sim convert` reads).
+    pub input: PathBuf,
+    /// Input format (default: detected from the content).
+    #[arg(long, value_enum)]
+    pub format: Option<Format>,
+    /// Output AER stream.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Focal length in px (default: from the recording).
+    #[arg(long)]
+    pub focal_px: Option<f64>,
+    /// Principal point column in px (default: from the recording, else the sensor centre).
+    #[arg(long)]
+    pub cx: Option<f64>,
+    /// Sensor width in px (default: from the recording).
+    #[arg(long, requires = "height")]
+    pub width: Option<u16>,
+    /// Sensor height in px (default: from the recording).
+    #[arg(long, requires = "width")]
+    pub height: Option<u16>,
+}
+
+/// Writes the stream and prints one line on stdout:
+/// `events=N t0_us=T width=W height=H focal_bits=F cx_bits=C` (intrinsics as U16F16 bits, the
+/// values `host-sim run` would use; `focal_bits=0` when the focal length is unknown).
+///
+/// # Errors
+/// When the recording cannot be read, its size is unknown, or the stream cannot be written.
+pub fn run(args: Args) -> Result<()> {
+    let rec = formats::read(&args.input, args.format)?;
+    if rec.events.is_empty() {
+        bail!("{}: the recording has no events", args.input.display());
+    }
+    let crate::commands::run::Camera {
+        width: w,
+        height: h,
+        focal,
+        cx,
+    } = crate::commands::run::Camera::resolve(
+        args.width.zip(args.height),
+        args.focal_px,
+        args.cx,
+        &rec,
+    )?;
+    let t0 = write_aer(&rec.events, &args.out)
+        .with_context(|| format!("{} -> {}", args.input.display(), args.out.display()))?;
+    let bits = |v: f64| U16F16::saturating_from_num(v).to_bits();
+    println!(
+        "events={} t0_us={t0} width={w} height={h} focal_bits={} cx_bits={}",
+        rec.events.len(),
+        focal.map_or(0, bits),
+        bits(cx)
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stream_round_trip_relative_to_first_event() {
+        let events: Vec<HostEvent> = (0..5000u64)
+            .map(|i| HostEvent {
+                t_us: 1_700_000_000_000_000 + i * 37 + (i / 1000) * 5_000_000,
+                x: (i * 13 % 346) as u16,
+                y: (i * 7 % 260) as u16,
+                on: i % 3 == 0,
+            })
+            .collect();
+        let (wire, t0) = encode_aer(&events).unwrap();
+        assert_eq!(t0, events[0].t_us);
+        assert!(looks_like_aer(&wire));
+        let (out, st) = decode_aer(&wire);
+        assert_eq!(st.bad + st.dropped, 0);
+        assert_eq!(out.len(), events.len());
+        for (a, b) in out.iter().zip(&events) {
+            assert_eq!(u64::from(a.t_us), b.t_us - t0);
+            assert_eq!((a.x, a.y, a.on), (b.x, b.y, b.on));
+        }
+    }
+
+    #[test]
+    fn coordinates_beyond_2047_are_an_error() {
+        let e = HostEvent {
+            t_us: 0,
+            x: 4000,
+            y: 0,
+            on: true,
+        };
+        assert!(encode_aer(&[e]).is_err());
+    }
+}

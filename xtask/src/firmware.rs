@@ -1,0 +1,648 @@
+//! Firmware tasks: `firmware` (build + size), `flash` (probe-rs), `qemu` (run a recording
+//! through the emulated firmware), and the firmware checks of `test`.
+//!
+//! `qemu` steps: build the QEMU firmware; turn INPUT into the AER stream with the hidden
+//! `host-sim aer-stream` command (which also resolves sensor size and intrinsics exactly as
+//! `host-sim run` does), or take an AER stream file as it is; run `qemu-system-arm -M
+//! mps2-an386 -icount shift=0` with the stream in an emulated SPI flash (or, over 16 MiB, a
+//! semihosting file); decode the firmware's yaw frames with `host-sim yaw-decode`; print the
+//! firmware's counters, the last line being
+//! `events=N frames_ok=N frames_bad=N frames_dropped=N instructions_per_event=N`.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+
+use crate::{cargo, root, run};
+
+/// The firmware's ELF for a board.
+fn elf(board: Board) -> PathBuf {
+    root()
+        .join("firmware/target")
+        .join(crate::TARGET)
+        .join("release")
+        .join(match board {
+            Board::Qemu => "tde-firmware",
+            Board::Stm32f405 => "tde-firmware",
+        })
+}
+
+/// The SPI flash QEMU emulates (n25q128): the drive file must be exactly this large.
+const FLASH_BYTES: u64 = 16 * 1024 * 1024;
+/// Longest a QEMU run may take (wall clock) before it is stopped.
+const QEMU_TIMEOUT: Duration = Duration::from_secs(1200);
+/// The AER sync pattern (`core_nostd::aer::frame::SYNC`).
+const AER_SYNC: [u8; 2] = [0xA5, 0xE7];
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Board {
+    Qemu,
+    Stm32f405,
+}
+
+impl Board {
+    fn parse(s: &str) -> Result<Self> {
+        match s {
+            "qemu" => Ok(Self::Qemu),
+            "stm32f405" => Ok(Self::Stm32f405),
+            _ => bail!("unknown board `{s}` (qemu, stm32f405)"),
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Qemu => "qemu",
+            Self::Stm32f405 => "stm32f405",
+        }
+    }
+
+    fn cargo_args(self) -> &'static [&'static str] {
+        match self {
+            Self::Qemu => &["--features", "board-qemu"],
+            Self::Stm32f405 => &["--no-default-features", "--features", "board-stm32f405"],
+        }
+    }
+}
+
+fn firmware_cargo() -> Command {
+    let mut c = cargo();
+    c.current_dir(root().join("firmware"));
+    // The firmware is its own workspace with its own target dir, whatever the caller's
+    // CARGO_TARGET_DIR says: `elf()` looks for the image there.
+    c.env("CARGO_TARGET_DIR", root().join("firmware/target"));
+    c
+}
+
+/// Builds the firmware for `board` (release).
+pub fn build(board: Board) -> Result<()> {
+    let mut c = firmware_cargo();
+    c.args(["build", "--release"]).args(board.cargo_args());
+    run(&format!("firmware build ({})", board.name()), c)
+}
+
+/// Prints flash and RAM use of the last build (`arm-none-eabi-size -A`, summed per region).
+pub fn size(board: Board) -> Result<()> {
+    let out = Command::new("arm-none-eabi-size")
+        .arg("-A")
+        .arg(elf(board))
+        .output()
+        .context("cannot run arm-none-eabi-size (apt-get install binutils-arm-none-eabi)")?;
+    if !out.status.success() {
+        bail!("arm-none-eabi-size failed");
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    let (mut flash, mut ram, mut other) = (0u64, 0u64, Vec::new());
+    for line in text.lines() {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        let [name, size, addr] = f[..] else { continue };
+        let (Ok(size), Ok(addr)) = (size.parse::<u64>(), addr.parse::<u64>()) else {
+            continue;
+        };
+        if size == 0 || addr == 0 && name.starts_with(".debug") {
+            continue;
+        }
+        match (board, name) {
+            (_, ".vector_table" | ".text" | ".rodata") => flash += size,
+            (_, ".data") => {
+                flash += size;
+                ram += size;
+            }
+            (_, ".bss" | ".uninit" | ".stack") => ram += size,
+            (_, n) if n.starts_with(".defmt") => flash += size,
+            _ if addr > 0 => other.push(format!("{name} {size} B at {addr:#x}")),
+            _ => {}
+        }
+    }
+    let (flash_total, ram_total) = match board {
+        Board::Qemu => (4 * 1024 * 1024, 4 * 1024 * 1024),
+        Board::Stm32f405 => (1024 * 1024, 128 * 1024),
+    };
+    eprintln!(
+        "xtask: {} firmware: flash {flash} B of {flash_total} ({:.1} %), RAM (static, without stack) {ram} B of {ram_total} ({:.1} %){}{}",
+        board.name(),
+        100.0 * flash as f64 / flash_total as f64,
+        100.0 * ram as f64 / ram_total as f64,
+        if other.is_empty() { "" } else { "; other: " },
+        other.join(", ")
+    );
+    Ok(())
+}
+
+/// `cargo xtask firmware [--board qemu|stm32f405]`: build and size (both boards by default).
+pub fn firmware(args: &[String]) -> Result<()> {
+    let boards = match args {
+        [] => vec![Board::Qemu, Board::Stm32f405],
+        [flag, b] if flag == "--board" => vec![Board::parse(b)?],
+        _ => bail!("usage: cargo xtask firmware [--board qemu|stm32f405]"),
+    };
+    for b in boards {
+        build(b)?;
+        size(b)?;
+    }
+    Ok(())
+}
+
+/// `cargo xtask flash`: builds the STM32F405 firmware and runs it on a board through probe-rs
+/// (defmt logs over RTT stream to the terminal until Ctrl-C).
+pub fn flash(args: &[String]) -> Result<()> {
+    if !args.is_empty() {
+        bail!("usage: cargo xtask flash");
+    }
+    build(Board::Stm32f405)?;
+    size(Board::Stm32f405)?;
+    let probe = Command::new("probe-rs").arg("--version").output();
+    if probe.map(|o| !o.status.success()).unwrap_or(true) {
+        bail!(
+            "probe-rs is not installed; install it once with `cargo install probe-rs-tools --locked` (~15 min)"
+        );
+    }
+    let mut c = Command::new("probe-rs");
+    c.args(["run", "--chip", "STM32F405RGTx"])
+        .arg(elf(Board::Stm32f405));
+    run("probe-rs run --chip STM32F405RGTx", c)
+}
+
+/// Options of `cargo xtask qemu`.
+#[derive(Debug, Default)]
+pub struct QemuArgs {
+    pub input: PathBuf,
+    pub out: PathBuf,
+    pub layout: Option<String>,
+    pub stride: Option<u16>,
+    pub focal_px: Option<f64>,
+    pub cx: Option<f64>,
+    pub width: Option<u16>,
+    pub height: Option<u16>,
+    pub rate_hz: u32,
+    /// `spi` (default up to 16 MiB) or `file` (semihosting).
+    pub via: Option<String>,
+    pub live: bool,
+    /// Working folder (default: `out/qemu`).
+    pub work: Option<PathBuf>,
+    /// Dense window `X0:Y0:W:H` (firmware only; `host-sim run` has no such option).
+    pub window: Option<String>,
+}
+
+const QEMU_USAGE: &str = "usage: cargo xtask qemu INPUT --out yaw.csv [--layout dense|paper-boxes] [--stride N] \
+[--focal-px F] [--cx X] [--cy Y] [--width W --height H] [--rate-hz 1000] [--via spi|file] [--live] [--work DIR] \
+[--window X0:Y0:W:H]";
+
+impl QemuArgs {
+    pub fn parse(args: &[String]) -> Result<Self> {
+        let mut a = QemuArgs {
+            rate_hz: 1000,
+            ..Default::default()
+        };
+        let mut input = None;
+        let mut it = args.iter();
+        while let Some(k) = it.next() {
+            let mut val = || {
+                it.next()
+                    .cloned()
+                    .with_context(|| format!("{k} needs a value\n{QEMU_USAGE}"))
+            };
+            let num = |v: String| -> Result<f64> {
+                v.parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .with_context(|| format!("{k}: not a number: {v}"))
+            };
+            match k.as_str() {
+                "--out" => a.out = PathBuf::from(val()?),
+                "--layout" => a.layout = Some(val()?),
+                "--stride" => a.stride = Some(val()?.parse().context("--stride: not a number")?),
+                "--focal-px" => a.focal_px = Some(num(val()?)?),
+                "--cx" => a.cx = Some(num(val()?)?),
+                "--cy" => {
+                    num(val()?)?; // yaw does not use it (as host-sim run)
+                }
+                "--width" => a.width = Some(val()?.parse().context("--width: not a number")?),
+                "--height" => a.height = Some(val()?.parse().context("--height: not a number")?),
+                "--rate-hz" => a.rate_hz = val()?.parse().context("--rate-hz: not a number")?,
+                "--via" => a.via = Some(val()?),
+                "--live" => a.live = true,
+                "--work" => a.work = Some(PathBuf::from(val()?)),
+                "--window" => a.window = Some(val()?),
+                s if s.starts_with("--") => bail!("unknown option {s}\n{QEMU_USAGE}"),
+                _ if input.is_none() => input = Some(PathBuf::from(k)),
+                _ => bail!("unexpected argument {k}\n{QEMU_USAGE}"),
+            }
+        }
+        a.input = input.with_context(|| format!("no INPUT\n{QEMU_USAGE}"))?;
+        if a.out.as_os_str().is_empty() {
+            bail!("no --out\n{QEMU_USAGE}");
+        }
+        if a.rate_hz == 0 || 1_000_000 % a.rate_hz != 0 {
+            bail!("--rate-hz must divide 1000000 (got {})", a.rate_hz);
+        }
+        if let Some(l) = &a.layout {
+            if l != "dense" && l != "paper-boxes" {
+                bail!("--layout must be dense or paper-boxes (got {l})");
+            }
+        }
+        if let Some(v) = &a.via {
+            if v != "spi" && v != "file" {
+                bail!("--via must be spi or file (got {v})");
+            }
+        }
+        if a.width.is_some() != a.height.is_some() {
+            bail!("--width and --height go together");
+        }
+        Ok(a)
+    }
+}
+
+/// What the firmware needs to know about the stream.
+struct StreamInfo {
+    t0_us: u64,
+    width: u16,
+    height: u16,
+    focal_bits: u32,
+    cx_bits: u32,
+}
+
+fn key<'a>(line: &'a str, k: &str) -> Option<&'a str> {
+    line.split_whitespace()
+        .find_map(|kv| kv.strip_prefix(k)?.strip_prefix('='))
+}
+
+fn is_aer_file(path: &Path) -> Result<bool> {
+    if path.extension().is_some_and(|e| e == "aer") {
+        return Ok(true);
+    }
+    let mut head = [0u8; 2];
+    let mut f =
+        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    use std::io::Read;
+    let n = f.read(&mut head).unwrap_or(0);
+    Ok(n == 2 && head == AER_SYNC)
+}
+
+/// `host-sim` through cargo (release).
+pub fn host_sim() -> Command {
+    let mut c = cargo();
+    c.args(["run", "--quiet", "--release", "-p", "host-sim", "--"]);
+    c
+}
+
+/// U16F16 bits of a value in px (nearest).
+fn u16f16_bits(v: f64) -> u32 {
+    (v * 65536.0).round().clamp(0.0, f64::from(u32::MAX)) as u32
+}
+
+/// Prepares `work/events.aer` and returns what the firmware needs.
+fn prepare_stream(a: &QemuArgs, stream: &Path) -> Result<StreamInfo> {
+    if is_aer_file(&a.input)? {
+        std::fs::copy(&a.input, stream)
+            .with_context(|| format!("cannot copy {}", a.input.display()))?;
+        let (width, height) = match (a.width, a.height) {
+            (Some(w), Some(h)) => (w, h),
+            _ => bail!("an AER stream carries no sensor size: pass --width and --height"),
+        };
+        let focal = a
+            .focal_px
+            .context("an AER stream carries no intrinsics: pass --focal-px (and --cx)")?;
+        let cx = a.cx.unwrap_or((f64::from(width) - 1.0) / 2.0);
+        return Ok(StreamInfo {
+            t0_us: 0,
+            width,
+            height,
+            focal_bits: u16f16_bits(focal),
+            cx_bits: u16f16_bits(cx),
+        });
+    }
+    let mut c = host_sim();
+    c.arg("aer-stream").arg(&a.input).arg("--out").arg(stream);
+    if let Some(f) = a.focal_px {
+        c.arg("--focal-px").arg(f.to_string());
+    }
+    if let Some(x) = a.cx {
+        c.arg("--cx").arg(x.to_string());
+    }
+    if let (Some(w), Some(h)) = (a.width, a.height) {
+        c.args(["--width", &w.to_string(), "--height", &h.to_string()]);
+    }
+    eprintln!("xtask: host-sim aer-stream {}", a.input.display());
+    let out = c.output().context("cannot run host-sim")?;
+    if !out.status.success() {
+        bail!(
+            "host-sim aer-stream failed: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    let line = String::from_utf8_lossy(&out.stdout).to_string();
+    let get = |k: &str| -> Result<u64> {
+        key(&line, k)
+            .and_then(|v| v.parse().ok())
+            .with_context(|| format!("host-sim aer-stream printed no {k}: {line}"))
+    };
+    let info = StreamInfo {
+        t0_us: get("t0_us")?,
+        width: get("width")? as u16,
+        height: get("height")? as u16,
+        focal_bits: get("focal_bits")? as u32,
+        cx_bits: get("cx_bits")? as u32,
+    };
+    if info.focal_bits == 0 {
+        bail!("focal length unknown: pass --focal-px (and --cx)");
+    }
+    Ok(info)
+}
+
+/// What a QEMU run reports.
+pub struct QemuReport {
+    /// The firmware's summary (two lines: counters, then details).
+    pub summary: String,
+    /// Time origin of the stream (µs on the recording's clock).
+    pub t0_us: u64,
+}
+
+/// `cargo xtask qemu ...` (see the module docs).
+pub fn qemu(args: &[String]) -> Result<()> {
+    let a = QemuArgs::parse(args)?;
+    crate::setup()?;
+    build(Board::Qemu)?;
+    let report = qemu_run(&a)?;
+    let mut lines = report.summary.lines();
+    let main = lines.next().unwrap_or_default();
+    for l in lines {
+        eprintln!("{l}");
+    }
+    eprintln!(
+        "t0_us={} (add to the firmware's times for the recording's clock)",
+        report.t0_us
+    );
+    println!("{main}");
+    Ok(())
+}
+
+/// Runs an already built QEMU firmware on `a.input`; writes `a.out`.
+pub fn qemu_run(a: &QemuArgs) -> Result<QemuReport> {
+    let work = a.work.clone().unwrap_or_else(|| root().join("out/qemu"));
+    std::fs::create_dir_all(&work).with_context(|| format!("cannot create {}", work.display()))?;
+    for f in [
+        "events.aer",
+        "flash.bin",
+        "yaw.bin",
+        "summary.txt",
+        "defmt.bin",
+    ] {
+        let _ = std::fs::remove_file(work.join(f));
+    }
+    let stream = work.join("events.aer");
+    let info = prepare_stream(a, &stream)?;
+    let bytes = std::fs::metadata(&stream)
+        .with_context(|| format!("cannot read {}", stream.display()))?
+        .len();
+    let via_spi = match a.via.as_deref() {
+        Some("file") => false,
+        Some(_) => {
+            if bytes > FLASH_BYTES {
+                bail!("the stream ({bytes} B) does not fit the 16 MiB SPI flash: use --via file");
+            }
+            true
+        }
+        None => bytes <= FLASH_BYTES,
+    };
+    let mut fw_args: Vec<String> = vec![
+        "tde-firmware".into(),
+        "--input".into(),
+        if via_spi { "spi" } else { "file" }.into(),
+        "--bytes".into(),
+        bytes.to_string(),
+        "--width".into(),
+        info.width.to_string(),
+        "--height".into(),
+        info.height.to_string(),
+        "--layout".into(),
+        a.layout.clone().unwrap_or_else(|| "dense".into()),
+        "--stride".into(),
+        a.stride.unwrap_or(2).to_string(),
+        "--focal-bits".into(),
+        info.focal_bits.to_string(),
+        "--cx-bits".into(),
+        info.cx_bits.to_string(),
+        "--period-us".into(),
+        (1_000_000 / a.rate_hz).to_string(),
+    ];
+    if a.live {
+        fw_args.push("--live".into());
+    }
+    if let Some(w) = &a.window {
+        fw_args.push("--window".into());
+        fw_args.push(w.clone());
+    }
+    let mut qemu = Command::new("qemu-system-arm");
+    qemu.current_dir(&work).args([
+        "-M",
+        "mps2-an386",
+        "-nographic",
+        "-monitor",
+        "none",
+        "-serial",
+        "none",
+        "-icount",
+        "shift=0,align=off,sleep=off",
+    ]);
+    let mut semi = String::from("enable=on,target=native");
+    for arg in &fw_args {
+        if arg.contains(',') {
+            bail!("firmware argument with a comma: {arg}");
+        }
+        semi.push_str(",arg=");
+        semi.push_str(arg);
+    }
+    qemu.arg("-semihosting-config").arg(semi);
+    if via_spi {
+        let flash = work.join("flash.bin");
+        std::fs::copy(&stream, &flash).context("cannot write flash.bin")?;
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&flash)
+            .context("cannot open flash.bin")?;
+        f.set_len(FLASH_BYTES).context("cannot pad flash.bin")?;
+        qemu.args([
+            "-drive",
+            "file=flash.bin,if=none,format=raw,id=fl",
+            "-device",
+            "n25q128,drive=fl",
+        ]);
+    }
+    qemu.arg("-kernel").arg(elf(Board::Qemu));
+    let defmt = std::fs::File::create(work.join("defmt.bin")).context("cannot create defmt.bin")?;
+    qemu.stdout(defmt);
+    eprintln!(
+        "xtask: qemu-system-arm -M mps2-an386 -icount shift=0 ({} B of AER via {}) in {}",
+        bytes,
+        if via_spi { "SPI flash" } else { "semihosting" },
+        work.display()
+    );
+    let status = run_with_timeout(qemu, QEMU_TIMEOUT)?;
+    let summary = std::fs::read_to_string(work.join("summary.txt")).unwrap_or_default();
+    if status != Some(0) {
+        bail!(
+            "the firmware exited with {} (defmt log: {}; decode it with `defmt-print -e {} < defmt.bin`){}",
+            status.map_or("a signal / timeout".to_string(), |c| format!("code {c}")),
+            work.join("defmt.bin").display(),
+            elf(Board::Qemu).display(),
+            if summary.is_empty() { String::new() } else { format!("\n{summary}") }
+        );
+    }
+    if summary.is_empty() {
+        bail!("the firmware wrote no summary.txt");
+    }
+    let mut c = host_sim();
+    c.arg("yaw-decode")
+        .arg(work.join("yaw.bin"))
+        .arg("--t0-us")
+        .arg(info.t0_us.to_string())
+        .arg("--out")
+        .arg(&a.out);
+    run("host-sim yaw-decode", c)?;
+    Ok(QemuReport {
+        summary,
+        t0_us: info.t0_us,
+    })
+}
+
+/// Runs `cmd`, killing it after `limit`; returns its exit code (`None` when killed).
+fn run_with_timeout(mut cmd: Command, limit: Duration) -> Result<Option<i32>> {
+    let mut child = cmd
+        .spawn()
+        .context("cannot start qemu-system-arm (apt-get install qemu-system-arm)")?;
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(st) = child.try_wait().context("waiting for qemu")? {
+            return Ok(st.code());
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Ok(None);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// The firmware part of `cargo xtask test`: fmt, clippy and build of both boards, then a
+/// short QEMU run that must match `host-sim run` bit for bit, and a corrupted stream that must
+/// be survived with the bad frames counted.
+pub fn check() -> Result<()> {
+    let mut c = firmware_cargo();
+    c.args(["fmt", "--check"]);
+    run("firmware fmt --check", c)?;
+    for board in [Board::Qemu, Board::Stm32f405] {
+        let mut c = firmware_cargo();
+        c.args(["clippy", "--release"])
+            .args(board.cargo_args())
+            .args(["--", "-D", "warnings"]);
+        run(&format!("firmware clippy ({})", board.name()), c)?;
+        build(board)?;
+        size(board)?;
+    }
+    // The QEMU ELF is the last one built for board-qemu: rebuild it (cheap) after the F405.
+    build(Board::Qemu)?;
+    qemu_smoke()
+}
+
+fn qemu_smoke() -> Result<()> {
+    let work = root().join("target/xtask-qemu-test");
+    std::fs::create_dir_all(&work).with_context(|| format!("cannot create {}", work.display()))?;
+    // A synthetic recording of at least 200 k events (1 s of the default scene: ~545 k).
+    let rec = work.join("rec");
+    let mut c = host_sim();
+    c.args(["synth", "--duration", "1", "--seed", "7", "--out"])
+        .arg(&rec);
+    run("host-sim synth (1 s)", c)?;
+    let events = rec.join("events.txt");
+    let fw_csv = work.join("qemu.csv");
+    let a = QemuArgs {
+        input: events.clone(),
+        out: fw_csv.clone(),
+        rate_hz: 1000,
+        work: Some(work.join("run")),
+        ..Default::default()
+    };
+    let report = qemu_run(&a)?;
+    let line = report
+        .summary
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .to_string();
+    eprintln!("xtask: qemu smoke: {line}");
+    let host_csv = work.join("host.csv");
+    let mut c = host_sim();
+    c.arg("run").arg(&events).arg("--out").arg(&host_csv);
+    run("host-sim run (same recording)", c)?;
+    let fw = std::fs::read(&fw_csv).context("cannot read the QEMU output")?;
+    let host = std::fs::read(&host_csv).context("cannot read the host output")?;
+    if fw != host {
+        bail!(
+            "QEMU output {} differs from host-sim run {}",
+            fw_csv.display(),
+            host_csv.display()
+        );
+    }
+    let events = key(&line, "events")
+        .and_then(|v| v.parse::<u64>().ok())
+        .unwrap_or(0);
+    if events < 200_000 {
+        bail!("qemu check: only {events} events (at least 200 k wanted): {line}");
+    }
+    eprintln!("xtask: QEMU output identical to host-sim run on {events} events");
+    for (k, want) in [("frames_bad", 0u64), ("frames_dropped", 0)] {
+        if key(&line, k).and_then(|v| v.parse::<u64>().ok()) != Some(want) {
+            bail!("qemu smoke: expected {k}={want}: {line}");
+        }
+    }
+    // The same stream with corruption: flips, a cut, garbage. The run must end normally and
+    // count bad frames.
+    let mut bytes = std::fs::read(work.join("run/events.aer")).context("cannot read the stream")?;
+    let n = bytes.len();
+    if n < 10_000 {
+        bail!("qemu smoke: stream too short ({n} B)");
+    }
+    for i in (1000..n).step_by(n / 7) {
+        bytes[i] ^= 0x5A;
+    }
+    bytes.drain(n / 2..n / 2 + 300);
+    let garbage: Vec<u8> = (0..500u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
+    bytes.splice(n / 3..n / 3, garbage);
+    let bad_stream = work.join("corrupted.aer");
+    std::fs::write(&bad_stream, &bytes).context("cannot write corrupted.aer")?;
+    let (w, h) = (346u16, 260u16);
+    let b = QemuArgs {
+        input: bad_stream,
+        out: work.join("qemu-corrupted.csv"),
+        rate_hz: 1000,
+        width: Some(w),
+        height: Some(h),
+        focal_px: Some(226.0),
+        work: Some(work.join("run-corrupted")),
+        ..Default::default()
+    };
+    let report = qemu_run(&b)?;
+    let line = report
+        .summary
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .to_string();
+    eprintln!("xtask: qemu corrupted stream: {line}");
+    let bad = key(&line, "frames_bad")
+        .and_then(|v| v.parse::<u64>().ok())
+        .unwrap_or(0);
+    let dropped = key(&line, "frames_dropped")
+        .and_then(|v| v.parse::<u64>().ok())
+        .unwrap_or(0);
+    if bad == 0 || dropped == 0 {
+        bail!("qemu corrupted stream: expected bad and dropped frames: {line}");
+    }
+    eprintln!("xtask: qemu checks passed");
+    Ok(())
+}
