@@ -9,7 +9,7 @@
 
 use core_nostd::event::Event;
 use core_nostd::layout::{Dense, Layout};
-use core_nostd::network::{active_words, Cell, InputFilter, Network, Spike};
+use core_nostd::network::{active_words, Cell, InputFilter, Network, Spike, UnitPair};
 use core_nostd::unit::{Kernel, Tde};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 
@@ -60,8 +60,17 @@ fn network_events(c: &mut Criterion) {
     let k = Kernel::DEFAULT;
     let layout = Dense::new(346, 260, 2).unwrap();
     let mut cells = vec![Cell::default(); layout.cell_count()];
+    let mut units = vec![UnitPair::default(); layout.cell_count()];
     let mut active = vec![0u32; active_words(layout.cell_count())];
-    let mut net = Network::new(&k, layout, &mut cells, &mut active, InputFilter::All).unwrap();
+    let mut net = Network::new(
+        &k,
+        layout,
+        &mut cells,
+        &mut units,
+        &mut active,
+        InputFilter::All,
+    )
+    .unwrap();
     // An edge sweeping right at 200 px/s over every row: realistic neighbour timing.
     let mut events = Vec::new();
     for step in 0..20_000u32 {

@@ -1,13 +1,15 @@
 //! The TDE network: events in; trigger records and spikes out; over a [`Layout`], with all state
 //! in caller-provided slices.
 //!
-//! A [`Cell`] is 24 bytes: the pixel's FAC trace, the time the cell refers to, and the two units
-//! the pixel triggers — 12 bytes per unit, FAC trace and clock included. State is stored exactly
-//! as computed (see [`Trace`] for why 16-bit traces are not enough): the membrane word holds
-//! `u / theta` in U1F31, or, with the top bit set, the remaining refractory time in µs (bits
-//! 30..16) and its sub-µs lag (bits 15..0). The top bit of the stored FAC trace holds the
-//! polarity of the pixel's last event (for the onset filter). Which units a cell has comes from
-//! the layout; a cell whose words are all zero is idle.
+//! State is kept per pixel in two slices: a [`Cell`] (8 bytes: the pixel's FAC trace and the
+//! time it refers to) and a [`UnitPair`] (16 bytes: the two units the pixel triggers). The unit
+//! slice is only needed by sinks that want spikes; the calibrated readout decodes bursts from
+//! their drives and runs with cells alone — 4 bytes per unit, where the spiking network takes
+//! 12. State is stored exactly as computed (see [`Trace`] for why 16-bit traces are not enough):
+//! the membrane word holds `u / theta` in U1F31, or, with the top bit set, the remaining
+//! refractory time in µs (bits 30..16) and its sub-µs lag (bits 15..0). The top bit of the
+//! stored FAC trace holds the polarity of the pixel's last event (for the onset filter). Which
+//! units a pixel has comes from the layout; state whose words are all zero is idle.
 //!
 //! # What comes out
 //! - For every event that triggers units, one [`Trigger`]: the drive `w_T · I_F(t⁻)` each of
@@ -36,25 +38,38 @@ const REFRACTORY: u32 = 1 << 31;
 /// Stored FAC trace: top bit = polarity of the pixel's last event (1 = ON).
 const POLARITY: u32 = 1 << 31;
 
-/// State of one pixel: its FAC trace and the two units it triggers. 24 bytes.
+/// A pixel's FAC trace and clock. 8 bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[repr(C)]
 pub struct Cell {
-    /// Time (µs) the state refers to.
+    /// Time (µs) the state refers to (of the cell and of its [`UnitPair`]).
     t_us: u32,
     /// FAC trace ([`Trace`] bits) and, in the top bit, the last polarity.
     i_fac: u32,
-    /// TRG traces of the left-to-right and right-to-left units ([`Trace`] bits).
+}
+
+/// The two units a pixel triggers (left-to-right, right-to-left). 16 bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C)]
+pub struct UnitPair {
+    /// TRG traces ([`Trace`] bits).
     i_trg: [u32; 2],
     /// Membranes, see [`REFRACTORY`].
     mem: [u32; 2],
 }
 
-impl Cell {
-    /// Whether the cell holds state that still changes with time.
+impl UnitPair {
     #[inline]
     fn is_live(&self) -> bool {
-        ((self.i_fac & !POLARITY) | self.i_trg[0] | self.i_trg[1] | self.mem[0] | self.mem[1]) != 0
+        (self.i_trg[0] | self.i_trg[1] | self.mem[0] | self.mem[1]) != 0
+    }
+}
+
+impl Cell {
+    /// Whether the FAC trace still changes with time.
+    #[inline]
+    fn is_live(&self) -> bool {
+        (self.i_fac & !POLARITY) != 0
     }
 
     #[inline]
@@ -163,6 +178,13 @@ pub enum NetError {
         /// Cells provided.
         given: usize,
     },
+    /// The unit slice is neither empty nor as long as the cell slice.
+    TooFewUnits {
+        /// Unit pairs needed (one per cell).
+        needed: usize,
+        /// Unit pairs provided.
+        given: usize,
+    },
     /// The active bitset is shorter than [`active_words`] of the cell count.
     TooFewActiveWords {
         /// Words needed.
@@ -177,6 +199,12 @@ impl core::fmt::Display for NetError {
         match self {
             Self::TooFewCells { needed, given } => {
                 write!(f, "layout needs {needed} cells, {given} given")
+            }
+            Self::TooFewUnits { needed, given } => {
+                write!(
+                    f,
+                    "layout needs {needed} unit pairs (or none), {given} given"
+                )
             }
             Self::TooFewActiveWords { needed, given } => {
                 write!(f, "active bitset needs {needed} words, {given} given")
@@ -195,6 +223,8 @@ pub struct Network<'a, L: Layout> {
     kernel: &'a Kernel,
     layout: L,
     cells: &'a mut [Cell],
+    /// Empty when no sink wants spikes; else one pair per cell.
+    units: &'a mut [UnitPair],
     active: &'a mut [u32],
     filter: InputFilter,
     /// FAC trace level below which the last onset is older than the filter's gap.
@@ -234,12 +264,14 @@ fn pack_unit(u: &UnitState) -> (u32, u32) {
 }
 
 impl<'a, L: Layout> Network<'a, L> {
-    /// A network at rest. `cells` must hold `layout.cell_count()` cells and `active`
-    /// [`active_words`] of that; both are reset.
+    /// A network at rest. `cells` must hold `layout.cell_count()` cells. To run the units
+    /// (for sinks that want spikes), `units` holds as many pairs and `active` [`active_words`]
+    /// of that; otherwise both may be empty. All are reset.
     pub fn new(
         kernel: &'a Kernel,
         layout: L,
         cells: &'a mut [Cell],
+        units: &'a mut [UnitPair],
         active: &'a mut [u32],
         filter: InputFilter,
     ) -> Result<Self, NetError> {
@@ -248,7 +280,25 @@ impl<'a, L: Layout> Network<'a, L> {
         let Some(cells) = cells.get_mut(..needed) else {
             return Err(NetError::TooFewCells { needed, given });
         };
-        let words = active_words(needed);
+        let given_units = units.len();
+        let units = if given_units == 0 {
+            units
+        } else {
+            match units.get_mut(..needed) {
+                Some(u) => u,
+                None => {
+                    return Err(NetError::TooFewUnits {
+                        needed,
+                        given: given_units,
+                    })
+                }
+            }
+        };
+        let words = if units.is_empty() {
+            0
+        } else {
+            active_words(needed)
+        };
         let given_words = active.len();
         let Some(active) = active.get_mut(..words) else {
             return Err(NetError::TooFewActiveWords {
@@ -257,6 +307,7 @@ impl<'a, L: Layout> Network<'a, L> {
             });
         };
         cells.fill(Cell::default());
+        units.fill(UnitPair::default());
         active.fill(0);
         let onset_level = match filter {
             InputFilter::All => Trace::ZERO,
@@ -269,6 +320,7 @@ impl<'a, L: Layout> Network<'a, L> {
             kernel,
             layout,
             cells,
+            units,
             active,
             filter,
             onset_level,
@@ -292,8 +344,10 @@ impl<'a, L: Layout> Network<'a, L> {
         &self.stats
     }
 
-    /// Size of one cell in bytes (state per pixel, holding two units).
+    /// Bytes of state per pixel: a [`Cell`], and a [`UnitPair`] when the units run.
     pub const CELL_BYTES: usize = core::mem::size_of::<Cell>();
+    /// Bytes of one [`UnitPair`] (two units).
+    pub const UNIT_PAIR_BYTES: usize = core::mem::size_of::<UnitPair>();
 
     /// FAC trace of cell `c` at time `t` (0 for a missing cell).
     #[inline]
@@ -349,6 +403,7 @@ impl<'a, L: Layout> Network<'a, L> {
         if late {
             self.stats.out_of_order += 1;
         }
+        let spiking = S::SPIKES && !self.units.is_empty();
         let mask = self.layout.units_at(ev.x, ev.y, c);
         let s = i32::from(self.layout.stride());
         let w_trg = kernel.params().w_trg;
@@ -363,16 +418,16 @@ impl<'a, L: Layout> Network<'a, L> {
         if mask & 2 != 0 {
             fac[1] = self.fac_at(self.layout.neighbor(ev.x, ev.y, c, s), t);
         }
-        if S::SPIKES {
+        if spiking {
             self.advance_cell::<S>(c, t, sink);
         }
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };
-        if !S::SPIKES && !late {
+        if !spiking && !late {
             cell.t_us = t;
         }
-        let own = kernel.fac_input(if S::SPIKES { cell.fac() } else { own_now });
+        let own = kernel.fac_input(if spiking { cell.fac() } else { own_now });
         cell.set_fac(own);
         if mask != 0 {
             sink.trigger(&Trigger {
@@ -383,14 +438,17 @@ impl<'a, L: Layout> Network<'a, L> {
                 own_fac: own,
             });
         }
-        if S::SPIKES {
+        if spiking {
+            let Some(pair) = self.units.get_mut(c) else {
+                return;
+            };
             let mut may_spike = false;
             for dir in Dir::BOTH {
                 let slot = dir.slot();
                 if mask & (1 << slot) == 0 {
                     continue;
                 }
-                let (Some(it), Some(mem)) = (cell.i_trg.get_mut(slot), cell.mem.get_mut(slot))
+                let (Some(it), Some(mem)) = (pair.i_trg.get_mut(slot), pair.mem.get_mut(slot))
                 else {
                     continue;
                 };
@@ -412,14 +470,19 @@ impl<'a, L: Layout> Network<'a, L> {
         }
     }
 
-    /// Advances cell `c` to time `t`, emitting its units' spikes in `(cell time, t]`. Returns
-    /// whether a unit of the cell may still spike without further input.
+    /// Advances cell `c` (and its units, when they run) to time `t`, emitting the units' spikes
+    /// in `(cell time, t]`. Returns whether a unit may still spike without further input.
     fn advance_cell<S: NetSink>(&mut self, c: usize, t: u32, sink: &mut S) -> bool {
         let kernel = self.kernel;
         let Some(cell) = self.cells.get_mut(c) else {
             return false;
         };
-        if !cell.is_live() {
+        let pair = if S::SPIKES {
+            self.units.get_mut(c)
+        } else {
+            None
+        };
+        if !cell.is_live() && !pair.as_deref().is_some_and(UnitPair::is_live) {
             cell.t_us = t;
             return false;
         }
@@ -430,10 +493,10 @@ impl<'a, L: Layout> Network<'a, L> {
         }
         let t0 = cell.t_us;
         let mut may_spike = false;
-        if S::SPIKES && dt > 0 {
+        if let (Some(pair), true) = (pair, dt > 0) {
             for dir in Dir::BOTH {
                 let slot = dir.slot();
-                let (Some(it), Some(mem)) = (cell.i_trg.get_mut(slot), cell.mem.get_mut(slot))
+                let (Some(it), Some(mem)) = (pair.i_trg.get_mut(slot), pair.mem.get_mut(slot))
                 else {
                     continue;
                 };
@@ -467,7 +530,7 @@ impl<'a, L: Layout> Network<'a, L> {
     /// up to `t`, unmarking it when no unit can spike any more) and one more cell of a
     /// round-robin sweep that keeps every cell's clock within 2^31 µs of the present.
     pub fn tick<S: NetSink>(&mut self, t: u32, sink: &mut S) {
-        if S::SPIKES {
+        if S::SPIKES && !self.units.is_empty() {
             for w in 0..self.active.len() {
                 let mut bits = self.active.get(w).copied().unwrap_or(0);
                 while bits != 0 {

@@ -103,13 +103,12 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
 pub const ONSET_GAP_US: u32 = 50_000;
 
 /// The product's pipeline, as the firmware and `host-sim run` both build it: the onset filter,
-/// the network over `layout` (state in `cells` and `active`), the calibrated readout, one sample
-/// per `cal.period_us`.
+/// the network over `layout` (state in `cells`, 8 bytes per pixel: the calibrated readout needs
+/// no unit state), the calibrated readout, one sample per `cal.period_us`.
 pub fn calibrated<'a, L: Layout>(
     kernel: &'a crate::unit::Kernel,
     layout: L,
     cells: &'a mut [crate::network::Cell],
-    active: &'a mut [u32],
     cal: crate::readout::calibrated::Calibration,
 ) -> Result<Pipeline<'a, L, crate::readout::calibrated::Calibrated>, crate::network::NetError> {
     let readout = crate::readout::calibrated::Calibrated::new(kernel, layout.stride(), cal);
@@ -117,7 +116,8 @@ pub fn calibrated<'a, L: Layout>(
         kernel,
         layout,
         cells,
-        active,
+        &mut [],
+        &mut [],
         crate::network::InputFilter::Onsets {
             gap_us: ONSET_GAP_US,
         },

@@ -11,7 +11,7 @@
 use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::{Dense, Layout};
-use core_nostd::network::{active_words, Cell, InputFilter, Network};
+use core_nostd::network::{Cell, InputFilter, Network};
 use core_nostd::pipeline::Pipeline;
 use core_nostd::readout::calibrated::{Calibrated, Calibration};
 use core_nostd::readout::{flags, YawSample};
@@ -60,12 +60,12 @@ fn run(u: f64, k: u32) -> Vec<YawSample> {
     let kernel = Kernel::DEFAULT;
     let layout = Dense::new(w, h, 2).unwrap();
     let mut cells = vec![Cell::default(); layout.cell_count()];
-    let mut active = vec![0u32; active_words(layout.cell_count())];
     let net = Network::new(
         &kernel,
         layout,
         &mut cells,
-        &mut active,
+        &mut [],
+        &mut [],
         InputFilter::Onsets { gap_us: 50_000 },
     )
     .unwrap();
@@ -121,12 +121,12 @@ fn no_events_means_stale_and_zero() {
     let kernel = Kernel::DEFAULT;
     let layout = Dense::new(16, 2, 2).unwrap();
     let mut cells = vec![Cell::default(); layout.cell_count()];
-    let mut active = vec![0u32; active_words(layout.cell_count())];
     let net = Network::new(
         &kernel,
         layout,
         &mut cells,
-        &mut active,
+        &mut [],
+        &mut [],
         InputFilter::Onsets { gap_us: 50_000 },
     )
     .unwrap();

@@ -11,7 +11,7 @@
 
 use core_nostd::event::Event;
 use core_nostd::layout::{Dense, Layout};
-use core_nostd::network::{active_words, Cell, InputFilter, Network, Spike};
+use core_nostd::network::{active_words, Cell, InputFilter, Network, Spike, UnitPair};
 use core_nostd::oracle::{OracleNetwork, OracleParams, OracleTde, GRAZE_MARGIN};
 use core_nostd::unit::{Kernel, Tde};
 use proptest::prelude::*;
@@ -121,8 +121,17 @@ fn grid_train(w: u16, h: u16) -> impl Strategy<Value = Vec<(u32, u16, u16)>> {
 fn run_grid_fixed(layout: Dense, train: &[(u32, u16, u16)], t0: u32) -> Vec<(u32, u32)> {
     let k = Kernel::DEFAULT;
     let mut cells = vec![Cell::default(); layout.cell_count()];
+    let mut units = vec![UnitPair::default(); layout.cell_count()];
     let mut active = vec![0u32; active_words(layout.cell_count())];
-    let mut net = Network::new(&k, layout, &mut cells, &mut active, InputFilter::All).unwrap();
+    let mut net = Network::new(
+        &k,
+        layout,
+        &mut cells,
+        &mut units,
+        &mut active,
+        InputFilter::All,
+    )
+    .unwrap();
     let mut spikes = Vec::new();
     let mut sink = |s: Spike| spikes.push((s.t_us, s.unit_id()));
     let mut t = t0;

@@ -10,7 +10,7 @@ use core_nostd::pipeline::Pipeline;
 use core_nostd::readout::calibrated::{Calibrated, Calibration};
 use core_nostd::unit::Kernel;
 
-pub use core_nostd::network::{active_words, Cell};
+pub use core_nostd::network::Cell;
 pub use core_nostd::readout::YawSample;
 
 /// What the processing needs besides the layout.
@@ -27,18 +27,16 @@ pub struct ProcessConfig {
 /// The pipeline the firmware runs.
 pub type Processor<'a, L> = Pipeline<'a, L, Calibrated>;
 
-/// Builds the pipeline over `layout` with state in `cells` and `active`
-/// (`layout.cell_count()` cells, [`active_words`] of that).
+/// Builds the pipeline over `layout` with state in `cells` (`layout.cell_count()` of them).
 pub fn build<'a, L: Layout>(
     kernel: &'a Kernel,
     layout: L,
     cells: &'a mut [Cell],
-    active: &'a mut [u32],
     cfg: &ProcessConfig,
 ) -> Result<Processor<'a, L>, NetError> {
     let cal = Calibration {
         period_us: cfg.period_us,
         ..Calibration::new(cfg.focal_px, cfg.cx)
     };
-    core_nostd::pipeline::calibrated(kernel, layout, cells, active, cal)
+    core_nostd::pipeline::calibrated(kernel, layout, cells, cal)
 }

@@ -35,7 +35,7 @@ use embassy_time::Timer;
 use panic_probe as _;
 use static_cell::StaticCell;
 
-use crate::app::process::{self, active_words, Cell, ProcessConfig};
+use crate::app::process::{self, Cell, ProcessConfig};
 use crate::app::processing::{self, Clock};
 use crate::app::{self, ByteSource, CostMeter, Overload, SourceError, YawSink};
 
@@ -51,11 +51,11 @@ const FOCAL_PX: U16F16 = U16F16::const_from_int(226);
 const CX: U16F16 = U16F16::from_bits(172 << 16 | 0x8000);
 /// Which network runs.
 const LAYOUT: BoardLayout = BoardLayout::PaperBoxes;
-/// The largest dense window that fits the CCM: 128 x 20 pixels (2560 cells, 61 440 B,
-/// 10 000 units), centred.
-const DENSE_WINDOW: (u16, u16, u16, u16) = ((346 - 128) / 2, (260 - 20) / 2, 128, 20);
+/// The largest dense window that fits the CCM: 192 x 40 pixels (7680 cells of 8 bytes,
+/// 61 440 B, 15 200 units), centred.
+const DENSE_WINDOW: (u16, u16, u16, u16) = ((346 - 192) / 2, (260 - 40) / 2, 192, 40);
 /// Cells reserved in CCM (the larger of the two layouts).
-const MAX_CELLS: usize = 2560;
+const MAX_CELLS: usize = 7680;
 /// SPI DMA ring size (bytes): 4 KiB is ~2 ms at 2 MB/s.
 const RING_BYTES: usize = 4096;
 /// SPI1 RX request on DMA2 stream 0 (channel 3).
@@ -72,7 +72,6 @@ enum BoardLayout {
 
 #[link_section = ".ccmram"]
 static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
-static mut ACTIVE: [u32; active_words(MAX_CELLS)] = [0; active_words(MAX_CELLS)];
 static mut RING: [u8; RING_BYTES] = [0; RING_BYTES];
 
 static KERNEL: Kernel = Kernel::DEFAULT;
@@ -188,24 +187,21 @@ async fn process_task() {
 
 async fn run_layout<L: Layout>(layout: L) {
     let needed = layout.cell_count().min(MAX_CELLS);
-    // SAFETY: CELLS and ACTIVE are only touched here, once; the cells are written before the
+    // SAFETY: CELLS is only touched here, once; the cells are written before the
     // slice over them is made (CCM is not zeroed: the section is NOLOAD).
-    let (cells, active): (&'static mut [Cell], &'static mut [u32]) = unsafe {
+    let cells: &'static mut [Cell] = unsafe {
         let base = core::ptr::addr_of_mut!(CELLS).cast::<Cell>();
         for i in 0..needed {
             base.add(i).write(Cell::default());
         }
-        (
-            core::slice::from_raw_parts_mut(base, needed),
-            &mut *core::ptr::addr_of_mut!(ACTIVE),
-        )
+        core::slice::from_raw_parts_mut(base, needed)
     };
     let cfg = ProcessConfig {
         focal_px: FOCAL_PX,
         cx: CX,
         period_us: 1_000,
     };
-    let mut pipeline = match process::build(&KERNEL, layout, cells, active, &cfg) {
+    let mut pipeline = match process::build(&KERNEL, layout, cells, &cfg) {
         Ok(p) => p,
         Err(_) => defmt::panic!("the layout needs more than {} cells", MAX_CELLS),
     };

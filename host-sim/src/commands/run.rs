@@ -13,7 +13,7 @@ use anyhow::{bail, Context, Result};
 use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::{Dense, Layout, PaperBoxes};
-use core_nostd::network::{active_words, Cell, InputFilter, Network};
+use core_nostd::network::{active_words, Cell, InputFilter, Network, UnitPair};
 use core_nostd::oracle::{OracleNetwork, OracleParams, OracleYaw};
 use core_nostd::params::TdeParams;
 use core_nostd::pipeline::Pipeline;
@@ -317,7 +317,6 @@ fn run_on_layout<L: Layout>(
     period_us: u32,
 ) -> Result<RunOutput> {
     let mut cells = vec![Cell::default(); layout.cell_count()];
-    let mut active = vec![0u32; active_words(layout.cell_count())];
     match args.readout {
         ReadoutKind::Calibrated => {
             let f = focal.context("focal length unknown: pass --focal-px (and --cx)")?;
@@ -328,9 +327,8 @@ fn run_on_layout<L: Layout>(
                     U16F16::saturating_from_num(cx),
                 )
             };
-            let mut p =
-                core_nostd::pipeline::calibrated(kernel, layout, &mut cells, &mut active, cal)
-                    .map_err(|e| anyhow::anyhow!("{e}"))?;
+            let mut p = core_nostd::pipeline::calibrated(kernel, layout, &mut cells, cal)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
             let mut out = feed(&mut p, &rec.events, period_us)?;
             out.outputs = p.readout().samples;
             out.ignored = p.network().stats().ignored;
@@ -338,8 +336,17 @@ fn run_on_layout<L: Layout>(
         }
         ReadoutKind::Normalized => {
             let readout = Normalized::new(10_000, period_us);
-            let net = Network::new(kernel, layout, &mut cells, &mut active, InputFilter::All)
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            let mut units = vec![UnitPair::default(); layout.cell_count()];
+            let mut active = vec![0u32; active_words(layout.cell_count())];
+            let net = Network::new(
+                kernel,
+                layout,
+                &mut cells,
+                &mut units,
+                &mut active,
+                InputFilter::All,
+            )
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
             let mut p = Pipeline::new(net, readout, period_us);
             let mut out = feed(&mut p, &rec.events, period_us)?;
             let st = p.network().stats();

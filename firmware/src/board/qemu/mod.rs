@@ -29,19 +29,16 @@ use core_nostd::unit::Kernel;
 use defmt_semihosting as _;
 use static_cell::StaticCell;
 
-use crate::app::process::{self, active_words, Cell, ProcessConfig};
+use crate::app::process::{self, Cell, ProcessConfig};
 use crate::app::processing::{self, Clock};
 use crate::app::{self, ByteSource, CostMeter, Overload, SourceError};
 use time::SysTickMeter;
 
-/// Network cells available in PSRAM (16 MiB / 24 B, rounded down).
-const MAX_CELLS: usize = 680_000;
+/// Network cells available in PSRAM (16 MiB / 8 B, rounded down).
+const MAX_CELLS: usize = 2_040_000;
 
 #[link_section = ".psram"]
 static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
-
-/// The network's active-cell bitmap (zeroed `.bss`).
-static mut ACTIVE: [u32; active_words(MAX_CELLS)] = [0; active_words(MAX_CELLS)];
 
 /// Seed of the paper-boxes placement, as `host-sim run`.
 const BOXES_SEED: u64 = PaperBoxes::DEFAULT_SEED;
@@ -213,19 +210,16 @@ async fn run_layout<L: Layout>(cfg: &Config, layout: L) {
     if needed > MAX_CELLS {
         config_error("the layout has too many cells");
     }
-    // SAFETY: CELLS and ACTIVE are only touched here, once; the first `needed` cells are
+    // SAFETY: CELLS is only touched here, once; the first `needed` cells are
     // written before the slice over them is made (PSRAM is not zeroed: the section is NOLOAD).
-    let (cells, active): (&'static mut [Cell], &'static mut [u32]) = unsafe {
+    let cells: &'static mut [Cell] = unsafe {
         let base = core::ptr::addr_of_mut!(CELLS).cast::<Cell>();
         for i in 0..needed {
             base.add(i).write(Cell::default());
         }
-        (
-            core::slice::from_raw_parts_mut(base, needed),
-            &mut *core::ptr::addr_of_mut!(ACTIVE),
-        )
+        core::slice::from_raw_parts_mut(base, needed)
     };
-    let mut pipeline = match process::build(&KERNEL, layout, cells, active, &cfg.process()) {
+    let mut pipeline = match process::build(&KERNEL, layout, cells, &cfg.process()) {
         Ok(p) => p,
         Err(_) => config_error("cannot build the network"),
     };
