@@ -19,56 +19,104 @@ pub fn init_fonts() {
     });
 }
 
-/// A line plot of one or more `(t_s, value)` series against time.
+/// One line of a panel: its legend name, values (at the panel's times), colour and width.
+pub struct Line<'a> {
+    /// Legend entry.
+    pub name: &'a str,
+    /// Values, one per time.
+    pub values: &'a [f64],
+    /// Colour.
+    pub color: plotters::style::RGBColor,
+    /// Stroke width (px).
+    pub width: u32,
+}
+
+/// `(lo, hi)` of the finite values with 8 % padding; `(-1, 1)` when there are none.
+pub fn padded_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in values.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (-1.0, 1.0);
+    }
+    let pad = ((hi - lo) * 0.08).max(1e-3);
+    (lo - pad, hi + pad)
+}
+
+/// Draws `lines` against the times `t` (s) on `area`, with a caption, axis labels and, when
+/// `legend`, a legend.
+pub fn line_panel<DB: plotters::prelude::DrawingBackend>(
+    area: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    caption: &str,
+    caption_size: u32,
+    y_desc: &str,
+    t: &[f64],
+    lines: &[Line<'_>],
+    legend: bool,
+) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    init_fonts();
+    let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("{e}");
+    let (t0, t1) = match (t.first(), t.last()) {
+        (Some(&a), Some(&b)) if a < b => (a, b),
+        _ => (0.0, 1.0),
+    };
+    let (lo, hi) = padded_range(lines.iter().flat_map(|l| l.values.iter().copied()));
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FONT, caption_size))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t0..t1, lo..hi)
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("t [s]")
+        .y_desc(y_desc)
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .draw()
+        .map_err(|e| err(&e))?;
+    for l in lines {
+        let color = l.color;
+        chart
+            .draw_series(LineSeries::new(
+                t.iter().copied().zip(l.values.iter().copied()),
+                color.stroke_width(l.width),
+            ))
+            .map_err(|e| err(&e))?
+            .label(l.name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+    }
+    if legend {
+        chart
+            .configure_series_labels()
+            .label_font((FONT, 14))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(|e| err(&e))?;
+    }
+    Ok(())
+}
+
+/// A PNG line plot of one or more series sampled at the times `t` (s).
 pub fn time_series(
     path: &std::path::Path,
     title: &str,
     y_label: &str,
-    series: &[(&str, &[(f64, f64)])],
+    t: &[f64],
+    lines: &[Line<'_>],
 ) -> anyhow::Result<()> {
     use plotters::prelude::*;
-    init_fonts();
-    let pts = || series.iter().flat_map(|(_, s)| s.iter());
-    let (t0, t1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-        (a.min(p.0), b.max(p.0))
-    });
-    let (v0, v1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-        (a.min(p.1), b.max(p.1))
-    });
-    let (t0, t1) = if t0 < t1 { (t0, t1) } else { (0.0, 1.0) };
-    let pad = ((v1 - v0) * 0.05).max(1e-3);
-    let (v0, v1) = if v0 <= v1 {
-        (v0 - pad, v1 + pad)
-    } else {
-        (-1.0, 1.0)
-    };
     let root = BitMapBackend::new(path, (1000, 420)).into_drawing_area();
     root.fill(&WHITE)?;
-    let mut c = ChartBuilder::on(&root)
-        .caption(title, (FONT, 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(t0..t1, v0..v1)?;
-    c.configure_mesh()
-        .x_desc("time (s)")
-        .y_desc(y_label)
-        .label_style((FONT, 13))
-        .draw()?;
-    let colors = [RED, BLUE, GREEN, BLACK, MAGENTA];
-    for (i, (name, s)) in series.iter().enumerate() {
-        let color = colors[i % colors.len()];
-        c.draw_series(LineSeries::new(s.iter().copied(), color.stroke_width(2)))?
-            .label(*name)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
-    }
-    c.configure_series_labels()
-        .border_style(BLACK)
-        .background_style(WHITE.mix(0.8))
-        .label_font((FONT, 13))
-        .draw()?;
+    line_panel(&root, title, 20, y_label, t, lines, true)?;
     root.present()?;
     Ok(())
 }

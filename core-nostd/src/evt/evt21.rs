@@ -96,20 +96,13 @@ impl Evt21Decoder {
         }
         match kind {
             word::TIME_HIGH => {
-                let field = (w >> 32) & 0x0FFF_FFFF;
-                if self.started {
-                    if self.th.update(field, 28) {
-                        self.stats.time_wraps += 1;
-                    }
-                } else {
-                    self.started = true;
-                    self.th = TimeHigh {
-                        value: field,
-                        wraps: 0,
-                    };
-                }
+                self.th.accept(
+                    &mut self.started,
+                    (w >> 32) & 0x0FFF_FFFF,
+                    28,
+                    &mut self.stats,
+                );
                 self.base = self.th.value << 6;
-                self.stats.time_high += 1;
             }
             _ if !self.started => self.stats.before_time_high += 1,
             word::EXT_TRIGGER => self.stats.triggers += 1,

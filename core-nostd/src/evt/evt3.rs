@@ -160,19 +160,9 @@ impl Evt3Decoder {
         let payload = w & 0x0FFF;
         match w >> 12 {
             word::TIME_HIGH => {
-                if self.started {
-                    if self.th.update(u64::from(payload), 12) {
-                        self.stats.time_wraps += 1;
-                    }
-                } else {
-                    self.started = true;
-                    self.th = TimeHigh {
-                        value: u64::from(payload),
-                        wraps: 0,
-                    };
-                }
+                self.th
+                    .accept(&mut self.started, u64::from(payload), 12, &mut self.stats);
                 self.t = self.th.value << 12;
-                self.stats.time_high += 1;
             }
             _ if !self.started => self.stats.before_time_high += 1,
             word::EXT_TRIGGER => self.stats.triggers += 1,

@@ -220,4 +220,28 @@ impl TimeHigh {
         self.value = v;
         wrapped
     }
+
+    /// Applies a TIME_HIGH word's field (`bits` wide): the first one starts the clock (and
+    /// `started`), later ones extend it across wraps. Counts the word and any wrap in `stats`.
+    #[inline(always)]
+    pub(crate) fn accept(
+        &mut self,
+        started: &mut bool,
+        field: u64,
+        bits: u32,
+        stats: &mut DecodeStats,
+    ) {
+        if *started {
+            if self.update(field, bits) {
+                stats.time_wraps += 1;
+            }
+        } else {
+            *started = true;
+            *self = TimeHigh {
+                value: field,
+                wraps: 0,
+            };
+        }
+        stats.time_high += 1;
+    }
 }

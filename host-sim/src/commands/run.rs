@@ -456,16 +456,16 @@ pub fn run(args: Args) -> Result<()> {
         } else {
             "yaw rate (rad/s)"
         };
-        crate::plot::time_series(
-            plot,
-            "host-sim run",
-            label,
-            &[(
-                "estimate",
-                &out.samples.iter().map(|s| (s.0, s.1)).collect::<Vec<_>>(),
-            )],
-        )
-        .with_context(|| format!("cannot draw {}", plot.display()))?;
+        let t: Vec<f64> = out.samples.iter().map(|s| s.0).collect();
+        let v: Vec<f64> = out.samples.iter().map(|s| s.1).collect();
+        let line = crate::plot::Line {
+            name: "estimate",
+            values: &v,
+            color: plotters::style::RGBColor(31, 119, 180),
+            width: 1,
+        };
+        crate::plot::time_series(plot, "host-sim run", label, &t, &[line])
+            .with_context(|| format!("cannot draw {}", plot.display()))?;
     }
     eprintln!(
         "{} events ({} outside the layout), {} {}, {:.1} M events/s; wrote {} samples to {}",

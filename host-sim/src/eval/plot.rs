@@ -8,7 +8,7 @@ use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 
 use super::{metrics, Report};
-use crate::plot::{init_fonts, FONT};
+use crate::plot::{init_fonts, line_panel, Line};
 
 const EST_COLOR: RGBColor = RGBColor(31, 119, 180);
 const GYRO_COLOR: RGBColor = RGBColor(255, 127, 14);
@@ -24,7 +24,6 @@ pub fn plot_report(report: &Report, title: &str, path: &Path) -> Result<()> {
     let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let (top, bottom) = root.split_vertically(420);
-    let (t0, t1) = (a.t[0], a.t[a.t.len() - 1]);
     let est_label = match report.estimate.scale {
         Some(k) => format!("estimate (normalized x {k:.3}, LS fit)"),
         None => "estimate".to_string(),
@@ -36,53 +35,17 @@ pub fn plot_report(report: &Report, title: &str, path: &Path) -> Result<()> {
         series.push(("gyro", g, GYRO_COLOR));
     }
     series.push((&est_label, &a.est, EST_COLOR));
-    let (lo, hi) = range(series.iter().flat_map(|s| s.1.iter().copied()));
-    let mut chart = ChartBuilder::on(&top)
-        .caption(title, (FONT, 22))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(t0..t1, lo..hi)
-        .map_err(|e| err(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc("t [s]")
-        .y_desc("yaw rate [rad/s]")
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
-        .draw()
-        .map_err(|e| err(&e))?;
-    for (name, v, color) in &series {
-        let width = if *name == "ground truth" { 2 } else { 1 };
-        chart
-            .draw_series(LineSeries::new(
-                a.t.iter().copied().zip(v.iter().copied()),
-                color.stroke_width(width),
-            ))
-            .map_err(|e| err(&e))?
-            .label(*name)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-    }
-    chart
-        .configure_series_labels()
-        .label_font((FONT, 14))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(|e| err(&e))?;
+    let rates: Vec<Line<'_>> = series.iter().map(|&(n, v, c)| line(n, v, c)).collect();
+    line_panel(&top, title, 22, "yaw rate [rad/s]", &a.t, &rates, true).map_err(|e| err(&e))?;
 
     // Integrated heading, degrees.
-    let headings: Vec<(&str, Vec<f64>, RGBColor)> = series
+    let headings: Vec<Vec<f64>> = series
         .iter()
-        .map(|(name, v, color)| {
-            let h = metrics::integrate(&a.t, v)
+        .map(|(_, v, _)| {
+            metrics::integrate(&a.t, v)
                 .into_iter()
                 .map(f64::to_degrees)
-                .collect();
-            (*name, h, *color)
+                .collect()
         })
         .collect();
     let m = &report.estimate;
@@ -94,45 +57,31 @@ pub fn plot_report(report: &Report, title: &str, path: &Path) -> Result<()> {
         m.arre_rad,
         m.final_heading_error_rad.to_degrees()
     );
-    let (lo, hi) = range(headings.iter().flat_map(|s| s.1.iter().copied()));
-    let mut chart = ChartBuilder::on(&bottom)
-        .caption(note, (FONT, 16))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(t0..t1, lo..hi)
-        .map_err(|e| err(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc("t [s]")
-        .y_desc("integrated heading [deg]")
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
-        .draw()
-        .map_err(|e| err(&e))?;
-    for (name, h, color) in &headings {
-        let width = if *name == "ground truth" { 2 } else { 1 };
-        chart
-            .draw_series(LineSeries::new(
-                a.t.iter().copied().zip(h.iter().copied()),
-                color.stroke_width(width),
-            ))
-            .map_err(|e| err(&e))?;
-    }
+    let heading_lines: Vec<Line<'_>> = series
+        .iter()
+        .zip(&headings)
+        .map(|(&(name, _, color), h)| line(name, h, color))
+        .collect();
+    line_panel(
+        &bottom,
+        &note,
+        16,
+        "integrated heading [deg]",
+        &a.t,
+        &heading_lines,
+        false,
+    )
+    .map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))?;
     Ok(())
 }
 
-/// A padded `[lo, hi]` range covering the finite values (never empty).
-fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for v in values.filter(|v| v.is_finite()) {
-        lo = lo.min(v);
-        hi = hi.max(v);
+/// A line of the figure: the ground truth drawn thicker.
+fn line<'a>(name: &'a str, values: &'a [f64], color: RGBColor) -> Line<'a> {
+    Line {
+        name,
+        values,
+        color,
+        width: if name == "ground truth" { 2 } else { 1 },
     }
-    if !lo.is_finite() {
-        return (-1.0, 1.0);
-    }
-    let pad = ((hi - lo) * 0.08).max(1e-3);
-    (lo - pad, hi + pad)
 }
