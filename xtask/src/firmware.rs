@@ -557,45 +557,56 @@ fn qemu_smoke() -> Result<()> {
         .arg(&rec);
     run("host-sim synth (1 s)", c)?;
     let events = rec.join("events.txt");
-    let fw_csv = work.join("qemu.csv");
-    let a = QemuArgs {
-        input: events.clone(),
-        out: fw_csv.clone(),
-        rate_hz: 1000,
-        work: Some(work.join("run")),
-        ..Default::default()
-    };
-    let report = qemu_run(&a)?;
-    let line = report
-        .summary
-        .lines()
-        .next()
-        .unwrap_or_default()
-        .to_string();
-    eprintln!("xtask: qemu smoke: {line}");
-    let host_csv = work.join("host.csv");
-    let mut c = host_sim();
-    c.arg("run").arg(&events).arg("--out").arg(&host_csv);
-    run("host-sim run (same recording)", c)?;
-    let fw = std::fs::read(&fw_csv).context("cannot read the QEMU output")?;
-    let host = std::fs::read(&host_csv).context("cannot read the host output")?;
-    if fw != host {
-        bail!(
-            "QEMU output {} differs from host-sim run {}",
-            fw_csv.display(),
-            host_csv.display()
-        );
-    }
-    let events = key(&line, "events")
-        .and_then(|v| v.parse::<u64>().ok())
-        .unwrap_or(0);
-    if events < 200_000 {
-        bail!("qemu check: only {events} events (at least 200 k wanted): {line}");
-    }
-    eprintln!("xtask: QEMU output identical to host-sim run on {events} events");
-    for (k, want) in [("frames_bad", 0u64), ("frames_dropped", 0)] {
-        if key(&line, k).and_then(|v| v.parse::<u64>().ok()) != Some(want) {
-            bail!("qemu smoke: expected {k}={want}: {line}");
+    // Both layouts (dense is the host default, paper-boxes the MCU default): the emulated
+    // firmware's yaw stream must equal `host-sim run` with the same options, byte for byte.
+    for layout in ["dense", "paper-boxes"] {
+        let fw_csv = work.join(format!("qemu-{layout}.csv"));
+        let a = QemuArgs {
+            input: events.clone(),
+            out: fw_csv.clone(),
+            layout: Some(layout.to_string()),
+            rate_hz: 1000,
+            work: Some(work.join("run")),
+            ..Default::default()
+        };
+        let report = qemu_run(&a)?;
+        let line = report
+            .summary
+            .lines()
+            .next()
+            .unwrap_or_default()
+            .to_string();
+        eprintln!("xtask: qemu ({layout}): {line}");
+        let host_csv = work.join(format!("host-{layout}.csv"));
+        let mut c = host_sim();
+        c.arg("run")
+            .arg(&events)
+            .args(["--layout", layout, "--out"])
+            .arg(&host_csv);
+        run(
+            &format!("host-sim run --layout {layout} (same recording)"),
+            c,
+        )?;
+        let fw = std::fs::read(&fw_csv).context("cannot read the QEMU output")?;
+        let host = std::fs::read(&host_csv).context("cannot read the host output")?;
+        if fw != host {
+            bail!(
+                "QEMU output {} differs from host-sim run {}",
+                fw_csv.display(),
+                host_csv.display()
+            );
+        }
+        let n = key(&line, "events")
+            .and_then(|v| v.parse::<u64>().ok())
+            .unwrap_or(0);
+        if n < 200_000 {
+            bail!("qemu check: only {n} events (at least 200 k wanted): {line}");
+        }
+        eprintln!("xtask: QEMU output identical to host-sim run ({layout}) on {n} events");
+        for (k, want) in [("frames_bad", 0u64), ("frames_dropped", 0)] {
+            if key(&line, k).and_then(|v| v.parse::<u64>().ok()) != Some(want) {
+                bail!("qemu check: expected {k}={want}: {line}");
+            }
         }
     }
     // The same stream with corruption: flips, a cut, garbage. The run must end normally and

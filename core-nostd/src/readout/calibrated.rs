@@ -54,6 +54,9 @@ const LOG2_1E6: i32 = 1_306_235;
 /// One sample's weight in the histograms (Q16).
 const SAMPLE: u32 = 1 << 16;
 
+/// Layouts with fewer units than this are sparse (see [`Calibration::for_units`]).
+pub const SPARSE_UNITS: usize = 10_000;
+
 /// Settings of the calibrated readout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Calibration {
@@ -76,10 +79,26 @@ impl Calibration {
     /// Defaults for a camera with focal length `focal_px` and principal column `cx`:
     /// `tau_A` = 10 ms (model.md), 1 kHz output, `alpha` = 0.3, a prior of 3 samples.
     pub fn new(focal_px: U16F16, cx: U16F16) -> Self {
+        Self::with_tau_a(focal_px, cx, 10_000)
+    }
+
+    /// Defaults for a layout of `units` units: `tau_A` = 10 ms for dense layouts, and for
+    /// sparse ones (fewer than [`SPARSE_UNITS`], like the paper's 200-unit boxes) 100 ms, since
+    /// they see far fewer edges per millisecond.
+    pub fn for_units(focal_px: U16F16, cx: U16F16, units: usize) -> Self {
+        let tau = if units < SPARSE_UNITS {
+            100_000
+        } else {
+            10_000
+        };
+        Self::with_tau_a(focal_px, cx, tau)
+    }
+
+    fn with_tau_a(focal_px: U16F16, cx: U16F16, tau_a_us: u32) -> Self {
         Self {
             focal_px,
             cx,
-            tau_a_us: 10_000,
+            tau_a_us,
             period_us: 1_000,
             alpha: U16F16::from_bits(19_661),
             prior: U16F16::from_num(3),

@@ -36,7 +36,7 @@ pub fn build<'a, L: Layout>(
 ) -> Result<Processor<'a, L>, NetError> {
     let cal = Calibration {
         period_us: cfg.period_us,
-        ..Calibration::new(cfg.focal_px, cfg.cx)
+        ..Calibration::for_units(cfg.focal_px, cfg.cx, layout.unit_count())
     };
     core_nostd::pipeline::calibrated(kernel, layout, cells, cal)
 }

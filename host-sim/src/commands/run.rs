@@ -85,6 +85,10 @@ pub struct Args {
     /// Output rate in Hz.
     #[arg(long, default_value_t = 1000)]
     pub rate_hz: u32,
+    /// Readout time constant tau_A in ms (default: 10 for dense, 100 for paper-boxes, whose 200
+    /// units see far fewer edges).
+    #[arg(long)]
+    pub tau_a_ms: Option<f64>,
     /// Output CSV.
     #[arg(long)]
     pub out: PathBuf,
@@ -167,6 +171,7 @@ impl Args {
             width: None,
             height: None,
             rate_hz: 1000,
+            tau_a_ms: None,
             out,
             plot: None,
         }
@@ -320,13 +325,20 @@ fn run_on_layout<L: Layout>(
     match args.readout {
         ReadoutKind::Calibrated => {
             let f = focal.context("focal length unknown: pass --focal-px (and --cx)")?;
-            let cal = Calibration {
+            let mut cal = Calibration {
                 period_us,
-                ..Calibration::new(
+                ..Calibration::for_units(
                     U16F16::saturating_from_num(f),
                     U16F16::saturating_from_num(cx),
+                    layout.unit_count(),
                 )
             };
+            if let Some(ms) = args.tau_a_ms {
+                if !(ms > 0.0 && ms <= 1000.0) {
+                    bail!("--tau-a-ms must be in (0, 1000] (got {ms})");
+                }
+                cal.tau_a_us = (ms * 1000.0).round() as u32;
+            }
             let mut p = core_nostd::pipeline::calibrated(kernel, layout, &mut cells, cal)
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
             let mut out = feed(&mut p, &rec.events, period_us)?;
