@@ -146,13 +146,14 @@ fn draw(path: &std::path::Path, fixed: &[Point], float: &[Point]) -> Result<()> 
         (fixed, RED, "fixed-point core", true),
     ] {
         c.draw_series(pts.iter().step_by(5).map(|p| {
+            // The oracle as wide rings, the core as dots inside them: both stay visible.
             Circle::new(
                 (p.dt_ms, f64::from(p.spikes)),
-                3,
+                if filled { 2 } else { 6 },
                 if filled {
                     color.filled()
                 } else {
-                    color.stroke_width(1)
+                    color.stroke_width(2)
                 },
             )
         }))?
@@ -181,17 +182,19 @@ fn draw(path: &std::path::Path, fixed: &[Point], float: &[Point]) -> Result<()> 
         .y_desc("first spike (ms)")
         .label_style((FONT, 13))
         .draw()?;
-    for (pts, color, name) in [
-        (float, BLUE, "f64 oracle"),
-        (fixed, RED, "fixed-point core"),
+    for (pts, color, name, width) in [
+        (float, BLUE.mix(0.5), "f64 oracle", 7),
+        (fixed, RED.mix(1.0), "fixed-point core", 2),
     ] {
         c.draw_series(LineSeries::new(
             pts.iter()
                 .filter_map(|p| p.first_spike_ms.map(|f| (p.dt_ms, f))),
-            color.stroke_width(2),
+            color.stroke_width(width),
         ))?
         .label(name)
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+        .legend(move |(x, y)| {
+            PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(width))
+        });
     }
     c.configure_series_labels()
         .border_style(BLACK)
