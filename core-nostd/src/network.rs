@@ -59,6 +59,12 @@ pub struct UnitPair {
 }
 
 impl UnitPair {
+    /// A unit pair at rest (for static arrays).
+    pub const DEFAULT: Self = Self {
+        i_trg: [0; 2],
+        mem: [0; 2],
+    };
+
     #[inline]
     fn is_live(&self) -> bool {
         (self.i_trg[0] | self.i_trg[1] | self.mem[0] | self.mem[1]) != 0
@@ -66,6 +72,9 @@ impl UnitPair {
 }
 
 impl Cell {
+    /// A cell at rest (for static arrays).
+    pub const DEFAULT: Self = Self { t_us: 0, i_fac: 0 };
+
     /// Whether the FAC trace still changes with time.
     #[inline]
     fn is_live(&self) -> bool {

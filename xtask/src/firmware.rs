@@ -542,6 +542,11 @@ pub fn check() -> Result<()> {
         build(board)?;
         size(board)?;
     }
+    // The event path (AER receiver + pipeline) must link no panic: this binary's panic handler
+    // calls an undefined symbol (see firmware/src/bin/no-panic-check.rs).
+    let mut c = firmware_cargo();
+    c.args(["build", "--release", "--bin", "no-panic-check"]);
+    run("firmware no-panic-check (the event path links no panic)", c)?;
     // The QEMU ELF is the last one built for board-qemu: rebuild it (cheap) after the F405.
     build(Board::Qemu)?;
     qemu_smoke()

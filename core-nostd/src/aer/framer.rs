@@ -125,7 +125,13 @@ impl<S: FrameSpec, const CAP: usize> Framer<S, CAP> {
     /// returns how many were taken. Frames are then taken out with [`Framer::next_frame`]; when
     /// the buffer is full, `next_frame` always makes room.
     pub fn feed(&mut self, bytes: &[u8]) -> usize {
-        if self.start > 0 && CAP - self.end < bytes.len() {
+        // `start <= end <= CAP` always holds; saying so lets the compiler drop copy_within's
+        // range check (and its panic path: see firmware/src/bin/no-panic-check.rs).
+        if self.start > 0
+            && self.start <= self.end
+            && self.end <= CAP
+            && CAP - self.end < bytes.len()
+        {
             self.buf.copy_within(self.start..self.end, 0);
             self.end -= self.start;
             self.start = 0;
