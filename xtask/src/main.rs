@@ -10,6 +10,7 @@ use std::process::{Command, ExitCode};
 use anyhow::{bail, Context, Result};
 
 mod firmware;
+mod fuzz;
 
 /// Debian packages the host tools need to build and run.
 const APT_PACKAGES: &[&str] = &[
@@ -30,6 +31,7 @@ fn main() -> ExitCode {
         Some("demo") => demo(&args[1..]),
         Some("setup") => setup(),
         Some("firmware") => firmware::firmware(&args[1..]),
+        Some("fuzz") => fuzz::fuzz(&args[1..]),
         Some("flash") => firmware::flash(&args[1..]),
         Some("qemu") => firmware::qemu(&args[1..]),
         Some("firmware-test") => setup().and_then(|()| firmware::check()),
@@ -61,7 +63,8 @@ fn print_help() {
          firmware [--board qemu|stm32f405]   build the firmware and print its flash/RAM use\n  \
          flash   build the STM32F405 firmware and run it through probe-rs (defmt over RTT)\n  \
          qemu INPUT --out yaw.csv [options]  run a recording through the emulated firmware\n  \
-         firmware-test   only the firmware part of `test` (both boards, QEMU runs)"
+         firmware-test   only the firmware part of `test` (both boards, QEMU runs)\n  \
+         fuzz [--seconds N] [TARGET..]      the libFuzzer targets (nightly), N s each (10)"
     );
 }
 
@@ -162,6 +165,8 @@ fn test() -> Result<()> {
     ]);
     run("core-nostd for thumbv7em-none-eabihf", c)?;
     firmware::check()?;
+    // A short smoke run of every fuzz target (the long run: `cargo xtask fuzz --seconds 3600`).
+    fuzz::fuzz(&[])?;
     eprintln!("xtask: all checks passed");
     Ok(())
 }

@@ -1,0 +1,87 @@
+//! The network and both readouts on arbitrary events: coordinates out of range, time going
+//! backwards, equal timestamps, huge bursts at one pixel, the u32 clock wrapping. No panic, and
+//! the calibrated output is a finite rate within the histograms' range.
+#![no_main]
+
+use core_nostd::event::Event;
+use core_nostd::fixed::types::U16F16;
+use core_nostd::layout::{Dense, Layout, PaperBoxes};
+use core_nostd::network::{active_words, Cell, InputFilter, Network, UnitPair};
+use core_nostd::pipeline::{self, Pipeline};
+use core_nostd::readout::calibrated::Calibration;
+use core_nostd::readout::normalized::Normalized;
+use core_nostd::unit::Kernel;
+use libfuzzer_sys::fuzz_target;
+
+/// 7 bytes per event: time step (u16, or a jump back when the top bit is set), x, y, polarity.
+fn events(data: &[u8]) -> impl Iterator<Item = Event> + '_ {
+    let mut t: u32 = u32::MAX - 50_000; // start just before the wrap
+    data.chunks_exact(7).map(move |b| {
+        let step = u32::from(u16::from_le_bytes([b[0], b[1]]));
+        t = if step & 0x8000 != 0 {
+            t.wrapping_sub(step & 0x7FFF)
+        } else {
+            t.wrapping_add(step * 16)
+        };
+        Event {
+            t_us: t,
+            x: u16::from_le_bytes([b[2], b[3]]) % 80,
+            y: u16::from_le_bytes([b[4], b[5]]) % 30,
+            on: b[6] & 1 == 1,
+        }
+    })
+}
+
+fn calibrated<L: Layout>(layout: L, data: &[u8]) {
+    let k = Kernel::DEFAULT;
+    let mut cells = vec![Cell::default(); layout.cell_count()];
+    let cal = Calibration::for_units(
+        U16F16::from_num(60),
+        U16F16::from_num(31.5),
+        layout.unit_count(),
+    );
+    let Ok(mut p) = pipeline::calibrated(&k, layout, &mut cells, cal) else {
+        return;
+    };
+    let mut check = |s: core_nostd::readout::YawSample| {
+        assert!(
+            s.yaw_rate.abs() <= U16F16::from_num(21u8).to_num::<core_nostd::fixed::types::I16F16>()
+        );
+    };
+    let mut last = 0;
+    for ev in events(data) {
+        last = ev.t_us;
+        p.event(ev, &mut check);
+    }
+    p.poll(last.wrapping_add(300_000), &mut check);
+}
+
+fuzz_target!(|data: &[u8]| {
+    calibrated(Dense::new(64, 24, 2).expect("layout"), data);
+    if let Some(l) = PaperBoxes::with_stride(240, 30, 2, 1) {
+        calibrated(l, data);
+    }
+    // The spiking network with the paper's readout.
+    let k = Kernel::DEFAULT;
+    let layout = Dense::new(64, 24, 2).expect("layout");
+    let n = layout.cell_count();
+    let (mut cells, mut units, mut active) = (
+        vec![Cell::default(); n],
+        vec![UnitPair::default(); n],
+        vec![0u32; active_words(n)],
+    );
+    let Ok(net) = Network::new(
+        &k,
+        layout,
+        &mut cells,
+        &mut units,
+        &mut active,
+        InputFilter::All,
+    ) else {
+        return;
+    };
+    let mut p = Pipeline::new(net, Normalized::new(10_000, 1_000), 1_000);
+    for ev in events(data) {
+        p.event(ev, &mut |_| {});
+    }
+});
