@@ -424,8 +424,8 @@ pub struct OracleYaw<L: crate::layout::Layout> {
 const ORACLE_BINS: usize = 64;
 
 impl<L: crate::layout::Layout> OracleYaw<L> {
-    /// The pipeline with the calibrated readout's defaults (`tau_A` 10 ms, `alpha` 0.3, prior 3,
-    /// onset gap `gap_us`) and output period `period_us`.
+    /// The pipeline with the calibrated readout's defaults (`alpha` 0.3, prior 3), readout time
+    /// constant `tau_a_us`, onset gap `gap_us` and output period `period_us`.
     pub fn new(
         p: OracleParams,
         layout: L,
@@ -433,6 +433,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         cx: f64,
         period_us: f64,
         gap_us: f64,
+        tau_a_us: f64,
     ) -> Self {
         let n = layout.cell_count();
         Self {
@@ -440,7 +441,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             layout,
             focal,
             cx,
-            tau_a: 10_000.0,
+            tau_a: tau_a_us,
             period: period_us,
             alpha: 0.3,
             prior: 3.0,

@@ -57,6 +57,16 @@ const SAMPLE: u32 = 1 << 16;
 /// Layouts with fewer units than this are sparse (see [`Calibration::for_units`]).
 pub const SPARSE_UNITS: usize = 10_000;
 
+/// Default readout time constant (µs) for a layout of `units` units: 10 ms, or 100 ms for
+/// sparse layouts (see [`Calibration::for_units`]).
+pub const fn default_tau_a_us(units: usize) -> u32 {
+    if units < SPARSE_UNITS {
+        100_000
+    } else {
+        10_000
+    }
+}
+
 /// Settings of the calibrated readout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Calibration {

@@ -17,7 +17,7 @@ use core_nostd::network::{active_words, Cell, InputFilter, Network, UnitPair};
 use core_nostd::oracle::{OracleNetwork, OracleParams, OracleYaw};
 use core_nostd::params::TdeParams;
 use core_nostd::pipeline::Pipeline;
-use core_nostd::readout::calibrated::Calibration;
+use core_nostd::readout::calibrated::{default_tau_a_us, Calibration};
 use core_nostd::readout::normalized::Normalized;
 use core_nostd::readout::{Readout, YawSample};
 use core_nostd::unit::Kernel;
@@ -26,6 +26,9 @@ use crate::formats::{self, Format, HostEvent};
 use crate::output::write_atomically;
 
 pub use core_nostd::pipeline::ONSET_GAP_US;
+
+/// Time constant of the paper's normalized readout (µs): model.md's 10 ms.
+pub const NORMALIZED_TAU_A_US: u32 = 10_000;
 
 /// Seed of the paper-boxes placement.
 pub const BOXES_SEED: u64 = PaperBoxes::DEFAULT_SEED;
@@ -85,8 +88,8 @@ pub struct Args {
     /// Output rate in Hz.
     #[arg(long, default_value_t = 1000)]
     pub rate_hz: u32,
-    /// Readout time constant tau_A in ms (default: 10 for dense, 100 for paper-boxes, whose 200
-    /// units see far fewer edges).
+    /// Readout time constant tau_A in ms (default: 10 for dense layouts and for the normalized
+    /// readout; 100 for the calibrated readout on paper-boxes, whose 200 units see few edges).
     #[arg(long)]
     pub tau_a_ms: Option<f64>,
     /// Output CSV.
@@ -190,14 +193,21 @@ pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> 
         focal,
         cx,
     } = Camera::resolve(args.width.zip(args.height), args.focal_px, args.cx, rec)?;
+    let tau_a_us = match args.tau_a_ms {
+        Some(ms) if ms > 0.0 && ms <= 1000.0 => Some((ms * 1000.0).round() as u32),
+        Some(ms) => bail!("--tau-a-ms must be in (0, 1000] (got {ms})"),
+        None => None,
+    };
     let kernel = Kernel::DEFAULT;
     match args.layout {
         LayoutKind::Dense => {
             let layout = Dense::new(w, h, args.stride)
                 .with_context(|| format!("stride {} does not fit a {w}x{h} sensor", args.stride))?;
             match args.model {
-                Model::Fixed => run_on_layout(args, rec, &kernel, layout, focal, cx, period_us),
-                Model::Float => run_float(args, rec, layout, focal, cx, period_us),
+                Model::Fixed => {
+                    run_on_layout(args, rec, &kernel, layout, focal, cx, period_us, tau_a_us)
+                }
+                Model::Float => run_float(args, rec, layout, focal, cx, period_us, tau_a_us),
             }
         }
         LayoutKind::PaperBoxes => {
@@ -209,14 +219,17 @@ pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> 
                     )
                 })?;
             match args.model {
-                Model::Fixed => run_on_layout(args, rec, &kernel, layout, focal, cx, period_us),
-                Model::Float => run_float(args, rec, layout, focal, cx, period_us),
+                Model::Fixed => {
+                    run_on_layout(args, rec, &kernel, layout, focal, cx, period_us, tau_a_us)
+                }
+                Model::Float => run_float(args, rec, layout, focal, cx, period_us, tau_a_us),
             }
         }
     }
 }
 
 /// The same run with the f64 oracle: exact exponentials and logarithms throughout.
+#[allow(clippy::too_many_arguments)]
 fn run_float<L: Layout>(
     args: &Args,
     rec: &formats::Recording,
@@ -224,6 +237,7 @@ fn run_float<L: Layout>(
     focal: Option<f64>,
     cx: f64,
     period_us: u32,
+    tau_a_us: Option<u32>,
 ) -> Result<RunOutput> {
     let Some(first) = rec.events.first() else {
         bail!("the recording has no events");
@@ -237,7 +251,16 @@ fn run_float<L: Layout>(
     let (samples, outputs, ignored) = match args.readout {
         ReadoutKind::Calibrated => {
             let f = focal.context("focal length unknown: pass --focal-px (and --cx)")?;
-            let mut y = OracleYaw::new(p, layout, f, cx, period, f64::from(ONSET_GAP_US));
+            let tau = tau_a_us.unwrap_or(default_tau_a_us(layout.unit_count()));
+            let mut y = OracleYaw::new(
+                p,
+                layout,
+                f,
+                cx,
+                period,
+                f64::from(ONSET_GAP_US),
+                f64::from(tau),
+            );
             let mut out = Vec::new();
             for (i, e) in rec.events.iter().enumerate() {
                 y.event((e.t_us - t0) as f64, e.x, e.y, e.on, &mut out);
@@ -270,7 +293,7 @@ fn run_float<L: Layout>(
             spikes.sort_by(|a, b| a.0.total_cmp(&b.0));
             // Spikes up to the last event, as the fixed pipeline counts them.
             let n = spikes.iter().filter(|s| s.0 <= last).count() as u64;
-            let tau_a = 10_000.0;
+            let tau_a = f64::from(tau_a_us.unwrap_or(NORMALIZED_TAU_A_US));
             let (mut a, mut t_a, mut k) = (0.0f64, 0.0f64, 0usize);
             let mut samples = Vec::new();
             let mut t = period;
@@ -320,6 +343,7 @@ fn run_on_layout<L: Layout>(
     focal: Option<f64>,
     cx: f64,
     period_us: u32,
+    tau_a_us: Option<u32>,
 ) -> Result<RunOutput> {
     let mut cells = vec![Cell::default(); layout.cell_count()];
     match args.readout {
@@ -333,11 +357,8 @@ fn run_on_layout<L: Layout>(
                     layout.unit_count(),
                 )
             };
-            if let Some(ms) = args.tau_a_ms {
-                if !(ms > 0.0 && ms <= 1000.0) {
-                    bail!("--tau-a-ms must be in (0, 1000] (got {ms})");
-                }
-                cal.tau_a_us = (ms * 1000.0).round() as u32;
+            if let Some(tau) = tau_a_us {
+                cal.tau_a_us = tau;
             }
             let mut p = core_nostd::pipeline::calibrated(kernel, layout, &mut cells, cal)
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -347,7 +368,7 @@ fn run_on_layout<L: Layout>(
             Ok(out)
         }
         ReadoutKind::Normalized => {
-            let readout = Normalized::new(10_000, period_us);
+            let readout = Normalized::new(tau_a_us.unwrap_or(NORMALIZED_TAU_A_US), period_us);
             let mut units = vec![UnitPair::default(); layout.cell_count()];
             let mut active = vec![0u32; active_words(layout.cell_count())];
             let net = Network::new(
@@ -388,7 +409,6 @@ fn feed<L: Layout, R: Readout>(
     let mut collect = |s: YawSample| {
         k += 1;
         let t = t0 + k * u64::from(period_us);
-        let _ = s.t_us;
         samples.push((
             t as f64 * 1e-6,
             f64::from(s.yaw_rate.to_bits()) / 65536.0,

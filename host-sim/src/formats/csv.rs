@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, Context, Result};
 
 use super::text::{self, csv_fields, line_error, Lines};
 use super::{Format, GtSample, GyroSample, HostEvent, Recording};
@@ -107,9 +107,13 @@ fn column(names: &[String], name: &str) -> Option<usize> {
     names.iter().position(|n| n == name)
 }
 
-/// Reads this project's `gt.csv`: yaw rate = `wy` (camera y axis, down; positive = turning
-/// right).
-pub(super) fn read_gt(path: &Path) -> Result<Vec<GtSample>> {
+/// Reads a CSV with a header line and returns, for every data row, the numbers in the columns
+/// named `wanted` (case-insensitive), in that order. `what` names those columns in errors.
+fn read_columns<const N: usize>(
+    path: &Path,
+    wanted: [&str; N],
+    what: &str,
+) -> Result<Vec<[f64; N]>> {
     let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut lines = Lines::new(&buf)
         .enumerate()
@@ -120,79 +124,57 @@ pub(super) fn read_gt(path: &Path) -> Result<Vec<GtSample>> {
     let names: Vec<String> = csv_fields(header)
         .map(|f| String::from_utf8_lossy(f).to_ascii_lowercase())
         .collect();
-    let (Some(it), Some(iw)) = (column(&names, "t_s"), column(&names, "wy")) else {
-        bail!("{}: header has no `t_s` and `wy` columns", path.display());
-    };
+    let mut cols = [0usize; N];
+    for (col, name) in cols.iter_mut().zip(wanted) {
+        *col = column(&names, name)
+            .ok_or_else(|| anyhow!("{}: header has no {what} columns", path.display()))?;
+    }
     let mut out = Vec::new();
     for (line_no, (off, line)) in lines {
         let fields: Vec<&[u8]> = csv_fields(line).collect();
-        let get = |i: usize| fields.get(i).and_then(|f| text::parse_f64(f));
-        match (get(it), get(iw)) {
-            (Some(t_s), Some(wy)) => out.push(GtSample {
-                t_s,
-                yaw_rate_rad_s: wy,
-            }),
-            _ => {
-                return Err(line_error(
-                    path,
-                    &buf,
-                    off,
-                    line_no + 1,
-                    line,
-                    "numbers in the `t_s` and `wy` columns",
-                ))
-            }
+        let mut row = [0.0f64; N];
+        for (v, &c) in row.iter_mut().zip(&cols) {
+            *v = match fields.get(c).and_then(|f| text::parse_f64(f)) {
+                Some(x) => x,
+                None => {
+                    return Err(line_error(
+                        path,
+                        &buf,
+                        off,
+                        line_no + 1,
+                        line,
+                        &format!("numbers in the {what} columns"),
+                    ))
+                }
+            };
         }
+        out.push(row);
     }
     Ok(out)
 }
 
+/// Reads this project's `gt.csv`: yaw rate = `wy` (camera y axis, down; positive = turning
+/// right).
+pub(super) fn read_gt(path: &Path) -> Result<Vec<GtSample>> {
+    Ok(read_columns(path, ["t_s", "wy"], "`t_s` and `wy`")?
+        .into_iter()
+        .map(|[t_s, wy]| GtSample {
+            t_s,
+            yaw_rate_rad_s: wy,
+        })
+        .collect())
+}
+
 /// Reads an IMU CSV with `t_us` and `gyroscope_x/y/z` (deg/s) columns.
 pub(super) fn read_imu_csv(path: &Path) -> Result<Vec<GyroSample>> {
-    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut lines = Lines::new(&buf)
-        .enumerate()
-        .filter(|(_, (_, l))| !text::is_blank_or_comment(l));
-    let (_, (_, header)) = lines
-        .next()
-        .ok_or_else(|| anyhow!("{}: empty file", path.display()))?;
-    let names: Vec<String> = csv_fields(header)
-        .map(|f| String::from_utf8_lossy(f).to_ascii_lowercase())
-        .collect();
-    let cols = [
-        column(&names, "t_us"),
-        column(&names, "gyroscope_x"),
-        column(&names, "gyroscope_y"),
-        column(&names, "gyroscope_z"),
-    ];
-    let [Some(it), Some(ix), Some(iy), Some(iz)] = cols else {
-        bail!(
-            "{}: header has no `t_us` and `gyroscope_x/y/z` columns",
-            path.display()
-        );
-    };
-    let mut out = Vec::new();
-    for (line_no, (off, line)) in lines {
-        let fields: Vec<&[u8]> = csv_fields(line).collect();
-        let get = |i: usize| fields.get(i).and_then(|f| text::parse_f64(f));
-        match (get(it), get(ix), get(iy), get(iz)) {
-            (Some(t), Some(x), Some(y), Some(z)) => out.push(GyroSample {
-                t_s: t * 1e-6,
-                wx: x.to_radians(),
-                wy: y.to_radians(),
-                wz: z.to_radians(),
-            }),
-            _ => {
-                return Err(line_error(
-                    path,
-                    &buf,
-                    off,
-                    line_no + 1,
-                    line,
-                    "numbers in the t_us and gyroscope columns",
-                ))
-            }
-        }
-    }
-    Ok(out)
+    let cols = ["t_us", "gyroscope_x", "gyroscope_y", "gyroscope_z"];
+    Ok(read_columns(path, cols, "`t_us` and `gyroscope_x/y/z`")?
+        .into_iter()
+        .map(|[t, x, y, z]| GyroSample {
+            t_s: t * 1e-6,
+            wx: x.to_radians(),
+            wy: y.to_radians(),
+            wz: z.to_radians(),
+        })
+        .collect())
 }
