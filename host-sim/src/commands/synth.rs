@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use crate::synth::{self, Intrinsics, MotionKind, Preset, SynthConfig, TextureKind};
+use crate::synth::{self, Flicker, Intrinsics, MotionKind, Preset, SynthConfig, TextureKind};
 
 /// Arguments of `host-sim synth`.
 #[derive(Debug, clap::Args)]
@@ -83,6 +83,41 @@ pub struct Args {
     /// Render threads (0 = all cores, at most 4); the output does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// A burst of lighting flicker (an event storm): start and length in seconds, e.g.
+    /// `0.4:0.1`. Every pixel's log intensity gets `A sin(2 pi f (t - start))` added; the length
+    /// is rounded to a whole number of periods (at least one).
+    #[arg(long, value_name = "START_S:DURATION_S", value_parser = parse_flicker_window)]
+    pub flicker: Option<(f64, f64)>,
+    /// Frequency f of the flicker, Hz (100 = lamps on 50 Hz mains).
+    #[arg(long, default_value_t = 100.0, requires = "flicker")]
+    pub flicker_hz: f64,
+    /// Amplitude A of the flicker, log-intensity units (those of --cp/--cm): the log intensity
+    /// swings by 2 A, so each pixel fires up to 4 A / threshold events per period (about two
+    /// fewer, as the pixel's reference lags behind each crest and trough).
+    #[arg(long, default_value_t = 0.5, requires = "flicker")]
+    pub flicker_amplitude: f64,
+}
+
+/// Parses `START_S:DURATION_S` (seconds, start >= 0, duration > 0).
+fn parse_flicker_window(s: &str) -> Result<(f64, f64), String> {
+    let (start, duration) = s.split_once(':').ok_or_else(|| {
+        format!("expected START_S:DURATION_S in seconds, e.g. 0.4:0.1 (got {s:?})")
+    })?;
+    let num = |what: &str, v: &str| -> Result<f64, String> {
+        v.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("{what} {v:?} is not a finite number of seconds"))
+    };
+    let (start, duration) = (num("start", start)?, num("duration", duration)?);
+    if start < 0.0 {
+        return Err(format!("start must be >= 0 s (got {start})"));
+    }
+    if duration <= 0.0 {
+        return Err(format!("duration must be > 0 s (got {duration})"));
+    }
+    Ok((start, duration))
 }
 
 impl Args {
@@ -129,6 +164,12 @@ impl Args {
             cfg.name.clone_from(name);
         }
         cfg.threads = self.threads;
+        cfg.flicker = self.flicker.map(|(start_s, duration_s)| Flicker {
+            start_s,
+            duration_s,
+            freq_hz: self.flicker_hz,
+            amplitude_log: self.flicker_amplitude,
+        });
         cfg
     }
 }
@@ -170,4 +211,62 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         gen_s
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    #[derive(Debug, clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn parse(extra: &[&str]) -> Result<Args, clap::Error> {
+        let argv = ["synth", "--out", "/tmp/x"].iter().chain(extra);
+        Cli::try_parse_from(argv).map(|c| c.args)
+    }
+
+    #[test]
+    fn synth_flicker_flags() {
+        assert_eq!(parse(&[]).unwrap().config().flicker, None);
+        let cfg = parse(&["--flicker", "0.4:0.1"]).unwrap().config();
+        assert_eq!(
+            cfg.flicker,
+            Some(Flicker {
+                start_s: 0.4,
+                duration_s: 0.1,
+                freq_hz: 100.0,
+                amplitude_log: 0.5,
+            })
+        );
+        let cfg = parse(&[
+            "--flicker",
+            "0:2",
+            "--flicker-hz",
+            "120",
+            "--flicker-amplitude",
+            "0.3",
+        ])
+        .unwrap()
+        .config();
+        let f = cfg.flicker.unwrap();
+        assert_eq!(
+            (f.start_s, f.duration_s, f.freq_hz, f.amplitude_log),
+            (0.0, 2.0, 120.0, 0.3)
+        );
+        for bad in [
+            "0.4", "a:0.1", "0.4:", "-1:0.1", "0.4:0", "0.4:-0.1", "inf:1", "0.1:NaN",
+        ] {
+            let e = parse(&[&format!("--flicker={bad}")])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("--flicker"), "{bad}: {e}");
+        }
+        // The frequency and amplitude mean nothing without a window.
+        assert!(parse(&["--flicker-hz", "50"]).is_err());
+    }
 }

@@ -5,13 +5,16 @@
 //! along an analytic [`MotionSpec`]. The log-intensity image is rendered at adaptively chosen
 //! times so that no pixel changes by more than `max_change` x the mean threshold between two
 //! renders; each pixel's threshold crossings are interpolated linearly between renders, which
-//! gives µs-accurate timestamps. Seeded with ChaCha streams: the same [`SynthConfig`] always
-//! yields the same events, whatever the number of render threads.
+//! gives µs-accurate timestamps. An optional [`Flicker`] burst adds a uniform, sinusoidal
+//! illumination change to every pixel (an event storm, as under lamps on AC mains). Seeded with
+//! ChaCha streams: the same [`SynthConfig`] always yields the same events, whatever the number
+//! of render threads.
 //!
 //! Library use: [`generate`] returns a [`Sequence`] in memory (events, ground truth, IMU,
 //! intrinsics); [`write_sequence`] writes the folder layout of `../shared/data/synthetic`.
 
 pub mod camera;
+pub mod flicker;
 pub mod motion;
 pub mod output;
 pub mod rng;
@@ -23,6 +26,7 @@ pub mod truth;
 use serde::{Deserialize, Serialize};
 
 pub use camera::{Intrinsics, Preset};
+pub use flicker::Flicker;
 pub use motion::{MotionKind, MotionSpec, YawTerm};
 pub use output::write_sequence;
 pub use sensor::SensorParams;
@@ -91,6 +95,11 @@ pub struct SynthConfig {
     pub imu: ImuParams,
     /// Render threads (0 = all available, at most 4). Does not change the output.
     pub threads: usize,
+    /// An optional burst of lighting flicker added to every pixel's log intensity (none by
+    /// default). Absent from configurations written before it existed, and left out of the
+    /// serialized form when `None`, so such `meta.json` files are unchanged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flicker: Option<Flicker>,
 }
 
 impl Default for SynthConfig {
@@ -128,6 +137,7 @@ impl SynthConfig {
             gt_rate_hz: 1000.0,
             imu: ImuParams::default(),
             threads: 0,
+            flicker: None,
         }
     }
 
@@ -178,6 +188,9 @@ impl SynthConfig {
             "rates must be > 0"
         );
         ensure!(self.cam_height_m > 0.0, "camera height must be > 0");
+        if let Some(f) = &self.flicker {
+            f.validate(self.dt_min_s)?;
+        }
         Ok(())
     }
 
@@ -291,7 +304,16 @@ pub fn generate_with_progress(
     let h = usize::from(intr.height);
     let mut cur = vec![0.0f32; n];
     let mut next = vec![0.0f32; n];
+    // The flicker's change of log intensity at `t`, added to a rendered image.
+    let flicker = cfg.flicker.as_ref();
+    let add_flicker = |t: f64, img: &mut [f32]| {
+        let g = flicker.map_or(0.0, |f| f.offset(t)) as f32;
+        if g != 0.0 {
+            img.iter_mut().for_each(|v| *v += g);
+        }
+    };
     renderer.render(&pose_at(0.0), &mut cur);
+    add_flicker(0.0, &mut cur);
     let mut mismatch_rng = rng::stream(cfg.seed, rng::Stream::Sensor);
     let noise_rng = rng::stream(cfg.seed, rng::Stream::Noise);
     let mut sensor = Sensor::new(&cfg.sensor, &cur, &mut mismatch_rng, noise_rng);
@@ -314,14 +336,25 @@ pub fn generate_with_progress(
     let mut t = 0.0;
     let mut dt = cfg.dt_max_s.min(1e-3);
     while t < t_end {
-        let step = dt.clamp(cfg.dt_min_s, cfg.dt_max_s);
-        let (t1, last) = if t + step >= t_end - 1e-9 {
+        let proposal = dt.clamp(cfg.dt_min_s, cfg.dt_max_s);
+        let (mut t1, mut last) = if t + proposal >= t_end - 1e-9 {
             (t_end, true)
         } else {
-            (t + step, false)
+            (t + proposal, false)
         };
+        // Never step across the flicker's start or one of its quarter-period points: the
+        // flicker is monotonic between them, so the change check below sees all of it.
+        let mut cut = false;
+        if let Some(b) = flicker.and_then(|f| f.next_breakpoint(t)) {
+            if b < t1 {
+                t1 = b;
+                last = false;
+                cut = true;
+            }
+        }
         let step = t1 - t;
         renderer.render(&pose_at(t1), &mut next);
+        add_flicker(t1, &mut next);
         let change = max_abs_diff(&cur, &next);
         if change > target && step > cfg.dt_min_s * 1.000_001 {
             stats.rejected_renders += 1;
@@ -347,7 +380,9 @@ pub fn generate_with_progress(
         } else {
             2.0
         };
-        dt = step * grow;
+        // A step shortened by a flicker breakpoint says little about the right step size:
+        // try the proposal again (a rejection shortens it if needed).
+        dt = if cut { proposal } else { step * grow };
         t = t1;
         progress(t);
     }
@@ -376,7 +411,7 @@ pub fn generate_with_progress(
         .iter()
         .map(|&p| [p / h as u32, p % h as u32])
         .collect();
-    let meta = serde_json::json!({
+    let mut meta = serde_json::json!({
         "generator": GENERATOR,
         "name": cfg.name,
         "seed": cfg.seed,
@@ -428,6 +463,16 @@ pub fn generate_with_progress(
         "stats": stats,
         "files": ["events.txt", "gt.csv", "imu.txt"],
     });
+    if let Some(f) = flicker {
+        meta["flicker"] = serde_json::json!({
+            "model": "log intensity of every pixel + amplitude_log * sin(2 pi freq_hz (t - start_s)) for start_s <= t <= end_s",
+            "start_s": f.start_s,
+            "end_s": f.end_s(),
+            "periods": f.periods(),
+            "freq_hz": f.freq_hz,
+            "amplitude_log": f.amplitude_log,
+        });
+    }
 
     Ok(Sequence {
         config: cfg.clone(),
@@ -526,4 +571,225 @@ fn peak_rate(events: &[Event], bin_us: u64) -> f64 {
     }
     best = best.max(events.len() - start);
     best as f64 * 1e6 / bin_us as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small, motionless, noise-free camera (only the flicker produces events).
+    fn still(duration_s: f64) -> SynthConfig {
+        let mut cfg = SynthConfig::new(Preset::Davis240, TextureKind::Urban, MotionKind::Constant);
+        cfg.intrinsics = Intrinsics::centred(64, 48, 50.0);
+        cfg.duration_s = duration_s;
+        cfg.motion_spec = Some(MotionSpec::constant_yaw(0.0));
+        cfg.sensor.noise_hz = 0.0;
+        cfg.seed = 5;
+        cfg
+    }
+
+    fn burst(start_s: f64, duration_s: f64, freq_hz: f64) -> Flicker {
+        Flicker {
+            start_s,
+            duration_s,
+            freq_hz,
+            amplitude_log: 0.5,
+        }
+    }
+
+    /// A still scene under a 100 Hz burst in [0.1, 0.15] s: every event lies inside the
+    /// window, the pixels fire about 4 A / C times per period, ON and OFF balance.
+    #[test]
+    fn synth_flicker_storm_inside_window() {
+        let mut cfg = still(0.25);
+        cfg.flicker = Some(burst(0.1, 0.05, 100.0));
+        let seq = generate(&cfg).unwrap();
+        let inside = |e: &Event| (100_000..=150_000).contains(&e.t_us);
+        let n_in = seq.events.iter().filter(|e| inside(e)).count();
+        let n_out = seq.events.len() - n_in;
+        assert_eq!(n_out, 0, "{n_out} events outside the window");
+        // The log intensity travels 4 A = 2.0 per period, 4 A / C = 8 thresholds. A pixel's
+        // reference lags behind each crest and trough by up to one threshold, so about one
+        // crossing per half period is lost: 6 per pixel and period (measured: 92,176 events =
+        // 6.00 x 3072 pixels x 5 periods). Bounds: 0.6 and 1.1 x 4 A / C.
+        let expected = 64.0 * 48.0 * 5.0 * 4.0 * 0.5 / 0.25;
+        assert!(
+            n_in as f64 > 0.6 * expected && (n_in as f64) < 1.1 * expected,
+            "{n_in} events in the window, expected about {expected}"
+        );
+        let on = seq.events.iter().filter(|e| e.on).count() as f64 / n_in as f64;
+        assert!((0.47..0.53).contains(&on), "ON fraction {on}");
+        // The storm shows in the 10 ms peak rate: > 1 M ev/s on 3072 pixels.
+        assert!(
+            seq.stats.peak_rate_ev_s_10ms > 1e6,
+            "{}",
+            seq.stats.peak_rate_ev_s_10ms
+        );
+        assert_eq!(seq.meta["flicker"]["periods"], 5);
+        assert_eq!(seq.meta["config"]["flicker"]["freq_hz"], 100.0);
+    }
+
+    /// A window shorter than the largest render step (one 1 ms period at 1 kHz, placed between
+    /// two 2 ms steps of a still scene) is still rendered finely, not stepped over.
+    #[test]
+    fn synth_flicker_short_window_is_not_skipped() {
+        let mut cfg = still(0.1);
+        cfg.flicker = Some(burst(0.0505, 0.001, 1000.0));
+        // At 1 kHz the crossings near the zero crossings of the sine come 80 us apart, closer
+        // than the default refractory period; count them all.
+        cfg.sensor.refractory_us = 0;
+        let seq = generate(&cfg).unwrap();
+        assert!(seq.stats.render_dt_max_s >= 1.9e-3, "{:?}", seq.stats);
+        let expected = 64.0 * 48.0 * 4.0 * 0.5 / 0.25;
+        let n = seq.events.len() as f64;
+        // A single period loses more to the quantisation of the reference level than a long
+        // burst (about 5.5 of the 8 crossings per pixel); without the breakpoints there would be
+        // none at all (the 2 ms renders land at 49 and 51 ms, where the sine is zero).
+        assert!(n > 0.5 * expected, "{n} events, expected about {expected}");
+        assert!(seq
+            .events
+            .iter()
+            .all(|e| (50_500..=51_500).contains(&e.t_us)));
+    }
+
+    /// The same configuration with flicker gives the same events.
+    #[test]
+    fn synth_flicker_is_deterministic() {
+        let mut cfg = still(0.12);
+        cfg.motion_spec = None;
+        cfg.motion = MotionKind::Sinusoid;
+        cfg.sensor.noise_hz = 2.0;
+        cfg.flicker = Some(burst(0.03, 0.05, 120.0));
+        let a = generate(&cfg).unwrap();
+        let b = generate(&cfg).unwrap();
+        assert!(!a.events.is_empty());
+        assert_eq!(a.events, b.events);
+        assert_eq!(a.stats, b.stats);
+        assert_eq!(a.meta, b.meta);
+    }
+
+    /// Adding the field changes nothing for sequences without flicker: no flicker and a burst
+    /// after the end of the sequence give the same events, and the same `meta.json` apart from
+    /// the flicker entries.
+    #[test]
+    fn synth_without_flicker_is_unchanged() {
+        let mut cfg = still(0.12);
+        cfg.motion_spec = None;
+        cfg.motion = MotionKind::Sinusoid;
+        cfg.max_rate = 1.0;
+        cfg.sensor.noise_hz = 2.0;
+        cfg.sensor.hot_pixels = 2;
+        let plain = generate(&cfg).unwrap();
+        assert!(plain.events.len() > 1000, "{}", plain.events.len());
+        assert!(plain.meta.get("flicker").is_none());
+        assert!(plain.meta["config"].get("flicker").is_none());
+        for start in [0.12, 0.5] {
+            cfg.flicker = Some(burst(start, 0.05, 100.0));
+            let late = generate(&cfg).unwrap();
+            assert_eq!(plain.events, late.events, "start {start}");
+            assert_eq!(plain.stats, late.stats);
+            assert_eq!(plain.gt, late.gt);
+            assert_eq!(plain.imu, late.imu);
+        }
+    }
+
+    /// Bad flicker parameters are rejected with the flag's name.
+    #[test]
+    fn synth_flicker_validation() {
+        let ok = burst(0.1, 0.05, 100.0);
+        let mut cfg = still(0.2);
+        cfg.flicker = Some(ok.clone());
+        cfg.validate().unwrap();
+        cfg.flicker = Some(Flicker {
+            amplitude_log: 0.0,
+            ..ok.clone()
+        });
+        cfg.validate().unwrap();
+        let bad = [
+            Flicker {
+                start_s: -0.1,
+                ..ok.clone()
+            },
+            Flicker {
+                start_s: f64::NAN,
+                ..ok.clone()
+            },
+            Flicker {
+                start_s: f64::INFINITY,
+                ..ok.clone()
+            },
+            Flicker {
+                duration_s: 0.0,
+                ..ok.clone()
+            },
+            Flicker {
+                duration_s: -1.0,
+                ..ok.clone()
+            },
+            Flicker {
+                duration_s: f64::INFINITY,
+                ..ok.clone()
+            },
+            Flicker {
+                freq_hz: 0.0,
+                ..ok.clone()
+            },
+            Flicker {
+                freq_hz: -50.0,
+                ..ok.clone()
+            },
+            Flicker {
+                freq_hz: f64::NAN,
+                ..ok.clone()
+            },
+            Flicker {
+                freq_hz: 1e6,
+                ..ok.clone()
+            },
+            Flicker {
+                amplitude_log: -0.1,
+                ..ok.clone()
+            },
+            Flicker {
+                amplitude_log: f64::INFINITY,
+                ..ok.clone()
+            },
+        ];
+        for f in bad {
+            cfg.flicker = Some(f.clone());
+            let e = cfg.validate().unwrap_err().to_string();
+            assert!(e.contains("--flicker"), "{f:?}: {e}");
+            assert!(generate(&cfg).is_err());
+        }
+    }
+
+    /// Configurations written before the flicker existed still load (as no flicker); with a
+    /// flicker the configuration survives a JSON round trip.
+    #[test]
+    fn synth_config_serde_without_flicker() {
+        let cfg = SynthConfig::default();
+        let mut v = serde_json::to_value(&cfg).unwrap();
+        assert!(v.get("flicker").is_none());
+        let obj = v.as_object_mut().unwrap();
+        obj.remove("flicker");
+        let back: SynthConfig = serde_json::from_value(v).unwrap();
+        assert_eq!(back, cfg);
+        assert_eq!(back.flicker, None);
+
+        let mut with = cfg.clone();
+        with.flicker = Some(burst(0.4, 0.1, 100.0));
+        let text = serde_json::to_string(&with).unwrap();
+        let back: SynthConfig = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, with);
+
+        // And the config inside a generated meta.json reads back.
+        let seq = generate(&{
+            let mut c = still(0.02);
+            c.flicker = Some(burst(0.005, 0.01, 100.0));
+            c
+        })
+        .unwrap();
+        let back: SynthConfig = serde_json::from_value(seq.meta["config"].clone()).unwrap();
+        assert_eq!(back, seq.config);
+    }
 }
