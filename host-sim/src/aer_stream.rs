@@ -18,27 +18,94 @@ use core_nostd::fixed::types::U16F16;
 use crate::formats::{self, Format, HostEvent};
 use crate::output::write_atomically;
 
+/// When the sender can put one frame on the link: the frame ends at byte `end_byte` of the
+/// stream (exclusive), and its last event happened `t_us` µs after the stream's first event.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Arrival {
+    /// Stream offset just past the frame, bytes.
+    pub end_byte: u64,
+    /// Time of the frame's last event, µs from the stream's first event (not wrapped).
+    pub t_us: u64,
+}
+
+impl Arrival {
+    /// Bytes of one schedule entry on disk: `end_byte` then `t_us`, both u64 little-endian.
+    pub const BYTES: usize = 16;
+}
+
+/// An AER stream with its time origin and the arrival schedule of its frames.
+#[derive(Clone, Debug, Default)]
+pub struct Encoded {
+    /// The stream bytes.
+    pub wire: Vec<u8>,
+    /// Time of the first event, µs on the recording's clock (0 without events).
+    pub t0_us: u64,
+    /// One entry per frame, in stream order.
+    pub arrivals: Vec<Arrival>,
+}
+
+/// Encodes events as an AER stream and records when each frame could be sent (an ideal
+/// sender puts a frame on the link as soon as its last event happened).
+///
+/// # Errors
+/// When an event's coordinates do not fit the format (0..=2047).
+pub fn encode_aer_timed(events: &[HostEvent]) -> Result<Encoded> {
+    let t0 = events.first().map_or(0, |e| e.t_us);
+    let mut enc = EventEncoder::new();
+    let mut wire = Vec::with_capacity(events.len() * 4 + 64);
+    let mut arrivals = Vec::with_capacity(events.len() / 200 + 1);
+    // Frames completed by `push(e)` hold the events before `e`.
+    let mut prev_t = 0u64;
+    for (i, e) in events.iter().enumerate() {
+        let rel = e.t_us.wrapping_sub(t0);
+        let ev = Event {
+            t_us: rel as u32,
+            x: e.x,
+            y: e.y,
+            on: e.on,
+        };
+        enc.push(ev, |f| {
+            wire.extend_from_slice(f);
+            arrivals.push(Arrival {
+                end_byte: wire.len() as u64,
+                t_us: prev_t,
+            });
+        })
+        .map_err(|err| anyhow::anyhow!("event {i}: {err}"))?;
+        prev_t = rel;
+    }
+    enc.flush(|f| {
+        wire.extend_from_slice(f);
+        arrivals.push(Arrival {
+            end_byte: wire.len() as u64,
+            t_us: prev_t,
+        });
+    });
+    Ok(Encoded {
+        wire,
+        t0_us: t0,
+        arrivals,
+    })
+}
+
 /// Encodes events as an AER stream; returns the bytes and the time origin (the first event's
 /// time, µs; 0 without events).
 ///
 /// # Errors
 /// When an event's coordinates do not fit the format (0..=2047).
 pub fn encode_aer(events: &[HostEvent]) -> Result<(Vec<u8>, u64)> {
-    let t0 = events.first().map_or(0, |e| e.t_us);
-    let mut enc = EventEncoder::new();
-    let mut wire = Vec::with_capacity(events.len() * 4 + 64);
-    for (i, e) in events.iter().enumerate() {
-        let ev = Event {
-            t_us: e.t_us.wrapping_sub(t0) as u32,
-            x: e.x,
-            y: e.y,
-            on: e.on,
-        };
-        enc.push(ev, |f| wire.extend_from_slice(f))
-            .map_err(|err| anyhow::anyhow!("event {i}: {err}"))?;
+    let e = encode_aer_timed(events)?;
+    Ok((e.wire, e.t0_us))
+}
+
+/// The schedule file: [`Arrival::BYTES`] per frame.
+pub fn schedule_bytes(arrivals: &[Arrival]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(arrivals.len() * Arrival::BYTES);
+    for a in arrivals {
+        out.extend_from_slice(&a.end_byte.to_le_bytes());
+        out.extend_from_slice(&a.t_us.to_le_bytes());
     }
-    enc.flush(|f| wire.extend_from_slice(f));
-    Ok((wire, t0))
+    out
 }
 
 /// Writes `events` as an AER stream file (complete or absent); returns the time origin.
@@ -92,6 +159,10 @@ pub struct Args {
     /// Sensor height in px (default: from the recording).
     #[arg(long, requires = "width")]
     pub height: Option<u16>,
+    /// Also write the arrival schedule (when each frame can be sent, for a paced replay;
+    /// format in `docs/wire-formats.md`).
+    #[arg(long)]
+    pub schedule: Option<PathBuf>,
 }
 
 /// Writes the stream and prints one line on stdout:
@@ -116,8 +187,20 @@ pub fn run(args: Args) -> Result<()> {
         args.cx,
         &rec,
     )?;
-    let t0 = write_aer(&rec.events, &args.out)
+    let enc = encode_aer_timed(&rec.events)
         .with_context(|| format!("{} -> {}", args.input.display(), args.out.display()))?;
+    write_atomically(&args.out, |w| {
+        w.write_all(&enc.wire)
+            .with_context(|| format!("cannot write {}", args.out.display()))
+    })?;
+    if let Some(path) = &args.schedule {
+        let bytes = schedule_bytes(&enc.arrivals);
+        write_atomically(path, |w| {
+            w.write_all(&bytes)
+                .with_context(|| format!("cannot write {}", path.display()))
+        })?;
+    }
+    let t0 = enc.t0_us;
     let bits = |v: f64| U16F16::saturating_from_num(v).to_bits();
     println!(
         "events={} t0_us={t0} width={w} height={h} focal_bits={} cx_bits={}",
@@ -152,6 +235,39 @@ mod tests {
             assert_eq!(u64::from(a.t_us), b.t_us - t0);
             assert_eq!((a.x, a.y, a.on), (b.x, b.y, b.on));
         }
+    }
+
+    #[test]
+    fn schedule_names_each_frames_end_and_last_event() {
+        let events: Vec<HostEvent> = (0..20_000u64)
+            .map(|i| HostEvent {
+                t_us: 5_000 + i * 3 + (i / 7000) * 40_000,
+                x: (i % 300) as u16,
+                y: (i % 200) as u16,
+                on: i % 2 == 0,
+            })
+            .collect();
+        let enc = encode_aer_timed(&events).unwrap();
+        assert_eq!(encode_aer(&events).unwrap().0, enc.wire);
+        assert_eq!(enc.arrivals.last().unwrap().end_byte, enc.wire.len() as u64);
+        // Decoding frame by frame up to each entry's end gives events up to its time, and the
+        // entry's time is that of the frame's last event.
+        let mut seen = 0usize;
+        let mut start = 0usize;
+        for a in &enc.arrivals {
+            let (evs, st) = decode_aer(&enc.wire[start..a.end_byte as usize]);
+            assert_eq!(st.ok, 1, "one whole frame per entry");
+            seen += evs.len();
+            assert_eq!(u64::from(evs.last().unwrap().t_us), a.t_us);
+            assert_eq!(events[seen - 1].t_us - 5_000, a.t_us);
+            start = a.end_byte as usize;
+        }
+        assert_eq!(seen, events.len());
+        assert!(enc.arrivals.windows(2).all(|w| w[0].t_us <= w[1].t_us));
+        assert_eq!(
+            schedule_bytes(&enc.arrivals).len(),
+            enc.arrivals.len() * Arrival::BYTES
+        );
     }
 
     #[test]
