@@ -164,6 +164,9 @@ pub fn flash(args: &[String]) -> Result<()> {
     run("probe-rs run --chip STM32F405RGTx", c)
 }
 
+/// Link rate of a paced QEMU run, Mbit/s: a fast SPI link (4 MB/s, 1 M AER events/s).
+const DEFAULT_LINK_MBIT: f64 = 32.0;
+
 /// Options of `cargo xtask qemu`.
 #[derive(Debug, Default)]
 pub struct QemuArgs {
@@ -179,6 +182,12 @@ pub struct QemuArgs {
     /// `spi` (default up to 16 MiB) or `file` (semihosting).
     pub via: Option<String>,
     pub live: bool,
+    /// Frames become readable at their events' times (needs a recording, not an AER stream).
+    pub paced: bool,
+    /// QEMU `-icount shift` (0..=3; default 0 for replays, 3 with `--live`).
+    pub icount_shift: Option<u8>,
+    /// Link rate of a paced run, Mbit/s (default 32; 0 = unlimited).
+    pub link_mbit: Option<f64>,
     /// Working folder (default: `out/qemu`).
     pub work: Option<PathBuf>,
     /// Dense window `X0:Y0:W:H` (firmware only; `host-sim run` has no such option).
@@ -186,8 +195,8 @@ pub struct QemuArgs {
 }
 
 const QEMU_USAGE: &str = "usage: cargo xtask qemu INPUT --out yaw.csv [--layout dense|paper-boxes] [--stride N] \
-[--focal-px F] [--cx X] [--cy Y] [--width W --height H] [--rate-hz 1000] [--via spi|file] [--live] [--work DIR] \
-[--window X0:Y0:W:H]";
+[--focal-px F] [--cx X] [--cy Y] [--width W --height H] [--rate-hz 1000] [--via spi|file] [--live] [--paced] \
+[--link-mbit 32] [--icount-shift 0..3] [--work DIR] [--window X0:Y0:W:H]";
 
 impl QemuArgs {
     pub fn parse(args: &[String]) -> Result<Self> {
@@ -223,6 +232,21 @@ impl QemuArgs {
                 "--rate-hz" => a.rate_hz = val()?.parse().context("--rate-hz: not a number")?,
                 "--via" => a.via = Some(val()?),
                 "--live" => a.live = true,
+                "--paced" => a.paced = true,
+                "--icount-shift" => {
+                    let v: u8 = val()?.parse().context("--icount-shift: not a number")?;
+                    if v > 3 {
+                        bail!("--icount-shift must be 0..=3 (got {v})");
+                    }
+                    a.icount_shift = Some(v);
+                }
+                "--link-mbit" => {
+                    let v = num(val()?)?;
+                    if v < 0.0 {
+                        bail!("--link-mbit must be >= 0 (got {v})");
+                    }
+                    a.link_mbit = Some(v);
+                }
                 "--work" => a.work = Some(PathBuf::from(val()?)),
                 "--window" => a.window = Some(val()?),
                 s if s.starts_with("--") => bail!("unknown option {s}\n{QEMU_USAGE}"),
@@ -292,9 +316,20 @@ fn u16f16_bits(v: f64) -> u32 {
     (v * 65536.0).round().clamp(0.0, f64::from(u32::MAX)) as u32
 }
 
-/// Prepares `work/events.aer` and returns what the firmware needs.
+impl QemuArgs {
+    /// The `-icount shift` of the run.
+    fn shift(&self) -> u8 {
+        self.icount_shift.unwrap_or(if self.live { 3 } else { 0 })
+    }
+}
+
+/// Prepares `work/events.aer` (and, for a paced run, `work/schedule.bin`) and returns what the
+/// firmware needs.
 fn prepare_stream(a: &QemuArgs, stream: &Path) -> Result<StreamInfo> {
     if is_aer_file(&a.input)? {
+        if a.paced {
+            bail!("--paced needs a recording: an AER stream carries no arrival times");
+        }
         std::fs::copy(&a.input, stream)
             .with_context(|| format!("cannot copy {}", a.input.display()))?;
         let (width, height) = match (a.width, a.height) {
@@ -315,6 +350,10 @@ fn prepare_stream(a: &QemuArgs, stream: &Path) -> Result<StreamInfo> {
     }
     let mut c = host_sim();
     c.arg("aer-stream").arg(&a.input).arg("--out").arg(stream);
+    if a.paced {
+        c.arg("--schedule")
+            .arg(stream.with_file_name("schedule.bin"));
+    }
     if let Some(f) = a.focal_px {
         c.arg("--focal-px").arg(f.to_string());
     }
@@ -384,6 +423,7 @@ pub fn qemu_run(a: &QemuArgs) -> Result<QemuReport> {
     std::fs::create_dir_all(&work).with_context(|| format!("cannot create {}", work.display()))?;
     for f in [
         "events.aer",
+        "schedule.bin",
         "flash.bin",
         "yaw.bin",
         "summary.txt",
@@ -426,9 +466,17 @@ pub fn qemu_run(a: &QemuArgs) -> Result<QemuReport> {
         info.cx_bits.to_string(),
         "--period-us".into(),
         (1_000_000 / a.rate_hz).to_string(),
+        "--icount-shift".into(),
+        a.shift().to_string(),
     ];
     if a.live {
         fw_args.push("--live".into());
+    }
+    if a.paced {
+        fw_args.push("--paced".into());
+        let bps = (a.link_mbit.unwrap_or(DEFAULT_LINK_MBIT) * 1e6 / 8.0).round();
+        fw_args.push("--link-bps".into());
+        fw_args.push((bps.min(f64::from(u32::MAX)) as u32).to_string());
     }
     if let Some(w) = &a.window {
         fw_args.push("--window".into());
@@ -444,8 +492,8 @@ pub fn qemu_run(a: &QemuArgs) -> Result<QemuReport> {
         "-serial",
         "none",
         "-icount",
-        "shift=0,align=off,sleep=off",
     ]);
+    qemu.arg(format!("shift={},align=off,sleep=off", a.shift()));
     let mut semi = String::from("enable=on,target=native");
     for arg in &fw_args {
         if arg.contains(',') {
@@ -474,9 +522,11 @@ pub fn qemu_run(a: &QemuArgs) -> Result<QemuReport> {
     let defmt = std::fs::File::create(work.join("defmt.bin")).context("cannot create defmt.bin")?;
     qemu.stdout(defmt);
     eprintln!(
-        "xtask: qemu-system-arm -M mps2-an386 -icount shift=0 ({} B of AER via {}) in {}",
+        "xtask: qemu-system-arm -M mps2-an386 -icount shift={} ({} B of AER via {}{}) in {}",
+        a.shift(),
         bytes,
         if via_spi { "SPI flash" } else { "semihosting" },
+        if a.paced { ", paced" } else { "" },
         work.display()
     );
     let status = run_with_timeout(qemu, QEMU_TIMEOUT)?;
@@ -650,15 +700,243 @@ fn qemu_smoke() -> Result<()> {
         .unwrap_or_default()
         .to_string();
     eprintln!("xtask: qemu corrupted stream: {line}");
-    let bad = key(&line, "frames_bad")
-        .and_then(|v| v.parse::<u64>().ok())
-        .unwrap_or(0);
-    let dropped = key(&line, "frames_dropped")
-        .and_then(|v| v.parse::<u64>().ok())
-        .unwrap_or(0);
-    if bad == 0 || dropped == 0 {
-        bail!("qemu corrupted stream: expected bad and dropped frames: {line}");
+    // What the host's frame decoder finds in the same bytes: the firmware must process every
+    // intact frame and count the same bad and missing ones.
+    let mut dec = core_nostd::aer::frame::FrameDecoder::new();
+    dec.push(&bytes, |_| {});
+    dec.finish(|_| {});
+    let want = dec.stats();
+    if want.bad == 0 || want.dropped == 0 {
+        bail!("qemu corrupted stream: the corruption broke no frame ({want:?})");
     }
+    for (k, v) in [
+        ("frames_ok", want.ok),
+        ("frames_bad", want.bad),
+        ("frames_dropped", want.dropped),
+    ] {
+        if counter(&line, k) != Some(v) {
+            bail!("qemu corrupted stream: expected {k}={v} (host frame decoder): {line}");
+        }
+    }
+    // The yaw samples after each loss carry INPUT_ERRORS; the others do not.
+    let flagged = yaw_flag_count(&b.out, core_nostd::aer::yaw::flags::INPUT_ERRORS)?;
+    if flagged == 0 {
+        bail!("qemu corrupted stream: no yaw sample flagged INPUT_ERRORS");
+    }
+    eprintln!(
+        "xtask: corrupted stream: {} intact frames processed, {} bad, {} missing, {flagged} yaw \
+         samples flagged INPUT_ERRORS",
+        want.ok, want.bad, want.dropped
+    );
+    qemu_overload(&work)?;
     eprintln!("xtask: qemu checks passed");
+    Ok(())
+}
+
+/// A counter `k=N` of the firmware's summary line.
+fn counter(line: &str, k: &str) -> Option<u64> {
+    key(line, k).and_then(|v| v.parse().ok())
+}
+
+/// One row of a yaw CSV (`t_s,yaw_rate_rad_s,flags`).
+struct YawRow {
+    t_s: f64,
+    yaw: f64,
+    flags: u8,
+}
+
+fn read_yaw_csv(path: &Path) -> Result<Vec<YawRow>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut rows = Vec::new();
+    for (i, l) in text.lines().enumerate().skip(1) {
+        let mut f = l.split(',');
+        let row = (|| {
+            Some(YawRow {
+                t_s: f.next()?.parse().ok()?,
+                yaw: f.next()?.parse().ok()?,
+                flags: f.next()?.parse().ok()?,
+            })
+        })();
+        let Some(row) = row else {
+            bail!("{}:{}: not t_s,yaw_rate_rad_s,flags", path.display(), i + 1);
+        };
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+fn yaw_flag_count(path: &Path, flag: u8) -> Result<usize> {
+    Ok(read_yaw_csv(path)?
+        .iter()
+        .filter(|r| r.flags & flag != 0)
+        .count())
+}
+
+/// Overload, live and paced: a lighting flicker makes the sensor fire far faster than the
+/// firmware (QEMU at 125 M instructions/s, the STM32F405's 192 x 40 dense window, a 32 Mbit/s
+/// link) can process. Frames must be dropped whole and counted, yaw samples flagged OVERFLOW
+/// during the storm only, and the output must return to what an unhurried replay of the same
+/// recording gives once the rate falls.
+fn qemu_overload(work: &Path) -> Result<()> {
+    const FLICKER_START_S: f64 = 0.4;
+    const FLICKER_S: f64 = 0.05;
+    const FLICKER_AMPLITUDE: f64 = 0.15;
+    /// Time after the storm by which no sample may be flagged any more.
+    const RECOVERY_S: f64 = 0.05;
+    /// Time after the storm from which the output must agree with the replay's (the
+    /// readout's leaky histograms have forgotten the lost events).
+    const SETTLE_S: f64 = 0.1;
+    const WINDOW: &str = "77:110:192:40";
+    /// No events at all in [GAP_START_S, GAP_START_S + GAP_S).
+    const GAP_START_S: f64 = 0.7;
+    const GAP_S: f64 = 0.15;
+    /// How long without events before samples are stale (`core_nostd::pipeline`).
+    const STALE_AFTER_S: f64 = 0.1;
+    let rec = work.join("rec-flicker");
+    let mut c = host_sim();
+    c.args(["synth", "--duration", "1", "--seed", "7", "--flicker"])
+        .arg(format!("{FLICKER_START_S}:{FLICKER_S}"))
+        .arg("--flicker-amplitude")
+        .arg(FLICKER_AMPLITUDE.to_string())
+        .arg("--out")
+        .arg(&rec);
+    run("host-sim synth (1 s, lighting flicker)", c)?;
+    // Then the sensor goes quiet (lens covered, a dark room): no events for GAP_S.
+    let text = std::fs::read_to_string(rec.join("events.txt")).context("cannot read events.txt")?;
+    let mut gapped = String::with_capacity(text.len());
+    for l in text.lines() {
+        let t: f64 = l
+            .split_whitespace()
+            .next()
+            .and_then(|v| v.parse().ok())
+            .with_context(|| format!("events.txt: bad line {l}"))?;
+        if !(GAP_START_S..GAP_START_S + GAP_S).contains(&t) {
+            gapped.push_str(l);
+            gapped.push('\n');
+        }
+    }
+    let events = rec.join("events-gap.txt");
+    std::fs::write(&events, gapped).context("cannot write events-gap.txt")?;
+    let live_csv = work.join("qemu-overload-live.csv");
+    let replay_csv = work.join("qemu-overload-replay.csv");
+    let mut a = QemuArgs {
+        input: events.clone(),
+        out: replay_csv.clone(),
+        layout: Some("dense".into()),
+        window: Some(WINDOW.into()),
+        rate_hz: 1000,
+        via: Some("file".into()),
+        work: Some(work.join("run-overload")),
+        ..Default::default()
+    };
+    qemu_run(&a)?;
+    a.out = live_csv.clone();
+    a.live = true;
+    a.paced = true;
+    let report = qemu_run(&a)?;
+    let mut lines = report.summary.lines();
+    let line = lines.next().unwrap_or_default().to_string();
+    let detail = lines.next().unwrap_or_default().to_string();
+    eprintln!("xtask: qemu overload (live, paced): {line}");
+    let overflow = counter(&detail, "frames_overflow").unwrap_or(0);
+    if overflow == 0 {
+        bail!("qemu overload: no frame was dropped (the storm did not overload): {detail}");
+    }
+    if counter(&line, "frames_bad") != Some(0)
+        || counter(&detail, "frames_gap") != Some(0)
+        || counter(&detail, "source_errors") != Some(0)
+    {
+        bail!("qemu overload: bytes were lost (only whole frames dropped from the queue expected): {detail}");
+    }
+    let received = counter(&detail, "frames_received").unwrap_or(0);
+    let processed = counter(&line, "frames_ok").unwrap_or(0);
+    if processed + overflow != received {
+        bail!(
+            "qemu overload: {received} frames received != {processed} processed + {overflow} dropped"
+        );
+    }
+    let live = read_yaw_csv(&live_csv)?;
+    let over = core_nostd::aer::yaw::flags::OVERFLOW;
+    let flagged: Vec<f64> = live
+        .iter()
+        .filter(|r| r.flags & over != 0)
+        .map(|r| r.t_s)
+        .collect();
+    let (Some(first), Some(last)) = (flagged.first(), flagged.last()) else {
+        bail!("qemu overload: frames were dropped but no yaw sample is flagged OVERFLOW");
+    };
+    let end = FLICKER_START_S + FLICKER_S;
+    if *first < FLICKER_START_S - 0.01 || *last > end + RECOVERY_S {
+        bail!(
+            "qemu overload: OVERFLOW flagged from {first:.3} s to {last:.3} s, outside the storm \
+             ({FLICKER_START_S} s to {end} s, + {RECOVERY_S} s)"
+        );
+    }
+    // In the quiet gap the MCU clock drives the output, flagged STALE after 100 ms, and only
+    // there.
+    let stale = core_nostd::aer::yaw::flags::STALE;
+    let clock = core_nostd::aer::yaw::flags::CLOCK;
+    let gap_end = GAP_START_S + GAP_S;
+    let stale_from = GAP_START_S + STALE_AFTER_S;
+    let bad_stale: Vec<f64> = live
+        .iter()
+        .filter(|r| {
+            let in_stale = r.t_s > stale_from + 0.002 && r.t_s < gap_end;
+            let may_be = r.t_s > stale_from - 0.002 && r.t_s < gap_end + 0.002;
+            (in_stale && r.flags & stale == 0) || (!may_be && r.flags & stale != 0)
+        })
+        .map(|r| r.t_s)
+        .collect();
+    if !bad_stale.is_empty() {
+        bail!(
+            "qemu live: STALE wrong at {} samples (first at {:.4} s): expected exactly on \
+             {stale_from} s to {gap_end} s",
+            bad_stale.len(),
+            bad_stale[0]
+        );
+    }
+    let stale_n = live.iter().filter(|r| r.flags & stale != 0).count();
+    let clock_n = live
+        .iter()
+        .filter(|r| r.flags & clock != 0 && r.t_s >= GAP_START_S && r.t_s < gap_end)
+        .count();
+    if clock_n == 0 {
+        bail!("qemu live: no sample in the quiet gap came from the MCU clock (CLOCK)");
+    }
+    // After the storm the output follows the replay's again.
+    let replay = read_yaw_csv(&replay_csv)?;
+    let peak = replay.iter().map(|r| r.yaw.abs()).fold(0.0, f64::max);
+    let mut worst = 0.0f64;
+    let mut compared = 0usize;
+    let mut j = 0usize;
+    for r in live.iter().filter(|r| r.t_s >= end + SETTLE_S) {
+        while replay.get(j).is_some_and(|p| p.t_s < r.t_s - 1e-7) {
+            j += 1;
+        }
+        if let Some(p) = replay.get(j).filter(|p| (p.t_s - r.t_s).abs() < 1e-7) {
+            worst = worst.max((r.yaw - p.yaw).abs());
+            compared += 1;
+        }
+    }
+    if compared < 300 || peak <= 0.0 {
+        bail!("qemu overload: only {compared} samples after the storm to compare with the replay");
+    }
+    let worst_rel = worst / peak;
+    eprintln!(
+        "xtask: overload: {overflow} of {received} frames dropped whole; OVERFLOW on {} samples \
+         from {first:.4} s to {last:.4} s (storm {FLICKER_START_S}-{end} s); from {:.2} s on, \
+         |live - replay| <= {worst:.6} rad/s ({:.3} % of peak) over {compared} samples; \
+         quiet {GAP_START_S}-{gap_end} s: {clock_n} samples from the MCU clock, {stale_n} STALE",
+        flagged.len(),
+        end + SETTLE_S,
+        worst_rel * 100.0
+    );
+    if worst_rel > 0.01 {
+        bail!(
+            "qemu overload: the output did not recover ({:.2} % of peak off the replay)",
+            worst_rel * 100.0
+        );
+    }
     Ok(())
 }

@@ -3,7 +3,7 @@
 use core_nostd::aer::frame::{flags, Frame, FrameDecoder, MAX_PAYLOAD};
 use core_nostd::aer::yaw::flags as yaw_flags;
 
-use super::{raise_flags, update_stats, ByteSource, FrameBuf, Msg, Overload, FRAMES};
+use super::{raise_flags, update_stats, ByteSource, CostMeter, FrameBuf, Msg, Overload, FRAMES};
 
 /// Bytes read from the source per call.
 const CHUNK: usize = 256;
@@ -59,8 +59,9 @@ fn publish(dec: &FrameDecoder, errors_seen: &mut u64) {
 }
 
 /// Runs the input stage until the source ends (never, on a live link); then queues
-/// [`Msg::End`].
-pub async fn run<S: ByteSource>(source: &mut S, mode: Overload) {
+/// [`Msg::End`]. The cost of decoding (framing, CRCs, copies; not the source's reads nor the
+/// waits for queue room) is added to `Stats::input_cost_units`.
+pub async fn run<S: ByteSource, M: CostMeter>(source: &mut S, mode: Overload) {
     let mut dec = FrameDecoder::new();
     let mut chunk = [0u8; CHUNK];
     let mut errors_seen = 0u64;
@@ -76,14 +77,19 @@ pub async fn run<S: ByteSource>(source: &mut S, mode: Overload) {
             }
         };
         let mut rest = chunk.get(..n).unwrap_or_default();
+        let mut cost = 0u64;
         while !rest.is_empty() {
+            let mut a = M::now();
             let taken = dec.feed(rest);
             rest = rest.get(taken..).unwrap_or_default();
-            while let Some(f) = dec.next_frame() {
-                let buf = copy_frame(&f);
+            while let Some(buf) = dec.next_frame().map(|f| copy_frame(&f)) {
+                cost += u64::from(M::ticks(a, M::now()));
                 deliver(buf, mode).await;
+                a = M::now();
             }
+            cost += u64::from(M::ticks(a, M::now()));
         }
+        update_stats(|s| s.input_cost_units += cost * u64::from(M::units_per_tick()));
         publish(&dec, &mut errors_seen);
     }
     while let Some(f) = dec.next_frame_at_end() {

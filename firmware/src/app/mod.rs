@@ -127,6 +127,8 @@ pub struct Stats {
     pub yaw_dropped: u32,
     /// Cost of the processing (pipeline calls only), in [`CostMeter`] units.
     pub cost_units: u64,
+    /// Cost of the input stage's decoding (framing, CRCs, copies), in [`CostMeter`] units.
+    pub input_cost_units: u64,
 }
 
 /// The counters every board reads.
@@ -145,6 +147,7 @@ pub static STATS: CriticalSectionMutex<Cell<Stats>> = CriticalSectionMutex::new(
     yaw_out: 0,
     yaw_dropped: 0,
     cost_units: 0,
+    input_cost_units: 0,
 }));
 
 /// Changes the counters.
@@ -183,8 +186,8 @@ pub trait YawSink {
 pub trait CostMeter {
     /// What one unit counts ("instructions" under QEMU -icount, "cycles" on hardware).
     const UNIT: &'static str;
-    /// Units of the raw counter's one step (QEMU: 40 instructions per SysTick tick).
-    const UNITS_PER_TICK: u32;
+    /// Units of the raw counter's one step (QEMU: 40 >> shift instructions per SysTick step).
+    fn units_per_tick() -> u32;
     /// The raw counter now.
     fn now() -> u32;
     /// Ticks from `earlier` to `later` (handles the counter's wrap).

@@ -121,7 +121,7 @@ pub async fn run<L: Layout, K: YawSink, M: CostMeter>(
         update_stats(|st| {
             st.frames_processed += 1;
             st.events = st.events.wrapping_add(events);
-            st.cost_units += cost * u64::from(M::UNITS_PER_TICK);
+            st.cost_units += cost * u64::from(M::units_per_tick());
             st.decoder_errors = e3 as u32;
         });
         // Let the input stage run between frames.

@@ -122,7 +122,10 @@ struct CycleMeter;
 
 impl CostMeter for CycleMeter {
     const UNIT: &'static str = "cycles";
-    const UNITS_PER_TICK: u32 = 1;
+
+    fn units_per_tick() -> u32 {
+        1
+    }
 
     fn now() -> u32 {
         DWT::cycle_count()
@@ -135,7 +138,7 @@ impl CostMeter for CycleMeter {
 
 #[embassy_executor::task]
 async fn input_task(mut source: SpiRing) {
-    app::input::run(&mut source, Overload::DropFrames).await;
+    app::input::run::<_, CycleMeter>(&mut source, Overload::DropFrames).await;
 }
 
 #[embassy_executor::task]

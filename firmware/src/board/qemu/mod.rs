@@ -8,15 +8,21 @@
 //! - Time: SysTick (see [`time`]); the executor idles in WFI (see [`executor`]).
 //! - Replay (default): the input waits for the processing (deterministic, bit-exact with the
 //!   host). `--live`: frames are dropped whole when processing falls behind and the clock
-//!   drives stale output, as on the flight controller.
+//!   drives stale output, as on the flight controller. `--paced`: frames become readable at
+//!   the times in `schedule.bin` (see [`paced`]), so a live run sees the recording's event
+//!   rate, bursts included, instead of a flood.
 //!
 //! Arguments (semihosting command line): `--input spi|file`, `--bytes N` (stream length in
 //! the flash), `--width W --height H` (sensor), `--layout dense|paper-boxes`, `--stride S`,
 //! `--window X0:Y0:W:H` (dense window; default: the whole sensor), `--focal-bits F --cx-bits C`
-//! (intrinsics as U16F16 bits, px), `--period-us P` (default 1000), `--live`.
+//! (intrinsics as U16F16 bits, px), `--period-us P` (default 1000), `--live`, `--paced`,
+//! `--link-bps B` (link rate of a paced run, bytes/s; 0 = unlimited),
+//! `--icount-shift N` (0..=3, the `-icount shift` QEMU runs with: 2^N ns per instruction;
+//! sets the instruction counter's scale).
 
 pub mod executor;
 pub mod host;
+pub mod paced;
 pub mod pl022;
 pub mod time;
 
@@ -74,6 +80,10 @@ struct Config {
     cx_bits: u32,
     period_us: u32,
     live: bool,
+    paced: bool,
+    /// Link rate of a paced run, bytes per second (0 = unlimited).
+    link_bps: u32,
+    icount_shift: u8,
 }
 
 impl Config {
@@ -90,6 +100,9 @@ impl Config {
             cx_bits: 0,
             period_us: 1_000,
             live: false,
+            paced: false,
+            link_bps: 0,
+            icount_shift: 0,
         };
         let mut key: Option<heapless::String<16>> = None;
         let mut err = None;
@@ -97,6 +110,7 @@ impl Config {
             let Some(k) = key.take() else {
                 match a {
                     "--live" => c.live = true,
+                    "--paced" => c.paced = true,
                     _ => key = heapless::String::try_from(a).ok(),
                 }
                 return;
@@ -117,6 +131,11 @@ impl Config {
                 }
                 "--focal-bits" => num(a).map(|v| c.focal_bits = v).is_some(),
                 "--cx-bits" => num(a).map(|v| c.cx_bits = v).is_some(),
+                "--link-bps" => num(a).map(|v| c.link_bps = v).is_some(),
+                "--icount-shift" => num(a)
+                    .filter(|v| *v <= time::MAX_ICOUNT_SHIFT)
+                    .map(|v| c.icount_shift = v as u8)
+                    .is_some(),
                 "--period-us" => num(a).filter(|v| *v > 0).map(|v| c.period_us = v).is_some(),
                 "--window" => {
                     let mut it = a.split(':').filter_map(num);
@@ -181,8 +200,8 @@ fn quit(code: i32) -> ! {
 }
 
 #[embassy_executor::task]
-async fn input_task(source: &'static mut Source, mode: Overload) {
-    app::input::run(source, mode).await;
+async fn input_task(source: &'static mut paced::Paced<Source>, mode: Overload) {
+    app::input::run::<_, SysTickMeter>(source, mode).await;
 }
 
 #[embassy_executor::task]
@@ -237,13 +256,16 @@ async fn run_layout<L: Layout>(cfg: &Config, layout: L) {
     } else {
         (s.cost_units + u64::from(s.events) / 2) / u64::from(s.events)
     };
-    let mut line: heapless::String<512> = heapless::String::new();
+    let per_byte_x100 = (s.input_cost_units * 100)
+        .checked_div(u64::from(s.bytes))
+        .unwrap_or(0);
+    let mut line: heapless::String<640> = heapless::String::new();
     let _ = write!(
         line,
         "events={} frames_ok={} frames_bad={} frames_dropped={} instructions_per_event={}\n\
          detail: bytes={} frames_received={} frames_gap={} frames_overflow={} source_overflows={} \
          skipped_bytes={} source_errors={} decoder_errors={} yaw_frames={} yaw_dropped={} \
-         yaw_write_errors={} cells={} {}={}\n",
+         yaw_write_errors={} cells={} {}={} input_{}_per_byte={}.{:02} mcu_time_us={}\n",
         s.events,
         s.frames_processed,
         s.frames_bad,
@@ -263,6 +285,10 @@ async fn run_layout<L: Layout>(cfg: &Config, layout: L) {
         needed,
         SysTickMeter::UNIT,
         s.cost_units,
+        SysTickMeter::UNIT,
+        per_byte_x100 / 100,
+        per_byte_x100 % 100,
+        embassy_time::Instant::now().as_micros(),
     );
     defmt::info!("{}", line.as_str());
     if !host::write_summary(&line) || sink.errors > 0 {
@@ -277,7 +303,6 @@ pub fn main() -> ! {
     let Some(cp) = cortex_m::Peripherals::take() else {
         quit(exit::PANIC)
     };
-    time::init(cp.SYST);
     let cfg = match Config::parse() {
         Ok(c) => c,
         Err(e) => {
@@ -286,7 +311,8 @@ pub fn main() -> ! {
         }
     };
     defmt::info!("qemu board: {}", cfg);
-    static SOURCE: StaticCell<Source> = StaticCell::new();
+    time::init(cp.SYST, cfg.icount_shift);
+    static SOURCE: StaticCell<paced::Paced<Source>> = StaticCell::new();
     let source = if cfg.spi {
         Source::Spi(pl022::SpiFlash::start(cfg.bytes))
     } else {
@@ -298,7 +324,18 @@ pub fn main() -> ! {
             }
         }
     };
-    let source = SOURCE.init(source);
+    let schedule = if cfg.paced {
+        match paced::Schedule::open() {
+            Some(s) => Some(s),
+            None => {
+                defmt::error!("--paced: cannot open schedule.bin");
+                quit(exit::INPUT)
+            }
+        }
+    } else {
+        None
+    };
+    let source = SOURCE.init(paced::Paced::new(source, schedule, u64::from(cfg.link_bps)));
     let mode = if cfg.live {
         Overload::DropFrames
     } else {

@@ -5,9 +5,11 @@
 //! are checked in the 1 ms interrupt (resolution 1 ms, enough for a 1 kHz output); a timer
 //! already due when scheduled is woken at once.
 //!
-//! Under `qemu-system-arm -icount shift=0,align=off,sleep=off` one instruction is 1 ns of
-//! virtual time, so one SysTick step (40 ns) is 40 instructions: [`SysTickMeter`] counts
-//! instructions with that resolution, and whole runs are deterministic.
+//! Under `qemu-system-arm -icount shift=N,align=off,sleep=off` one instruction is 2^N ns of
+//! virtual time, so one SysTick step (40 ns) is 40 / 2^N instructions: [`SysTickMeter`] counts
+//! instructions with that resolution, and whole runs are deterministic. Replays use N = 0
+//! (1 G instructions per virtual second: the fastest virtual time, the finest count); live
+//! runs use N = 3 (125 M instructions/s, the order of an STM32F405 at 168 MHz).
 
 use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -29,6 +31,12 @@ const CORE_HZ: u32 = 25_000_000;
 const RELOAD: u32 = CORE_HZ / 1_000;
 /// SysTick steps per embassy tick (1 µs).
 const STEPS_PER_US: u64 = (CORE_HZ / 1_000_000) as u64;
+
+/// Largest `-icount shift` the meter supports (40 ns = 5 instructions at shift 3).
+pub const MAX_ICOUNT_SHIFT: u32 = 3;
+
+/// Instructions per SysTick step (40 >> shift).
+static INSTRUCTIONS_PER_STEP: AtomicU32 = AtomicU32::new(40);
 
 /// Whole 1 ms periods since start.
 static PERIODS: AtomicU32 = AtomicU32::new(0);
@@ -77,8 +85,12 @@ fn SysTick() {
     });
 }
 
-/// Starts SysTick: 1 ms interrupts from the core clock.
-pub fn init(mut syst: SYST) {
+/// Starts SysTick: 1 ms interrupts from the core clock. `icount_shift` is the QEMU
+/// `-icount shift` (clamped to [`MAX_ICOUNT_SHIFT`]), for the instruction counter.
+pub fn init(mut syst: SYST, icount_shift: u8) {
+    let ns_per_step = 1_000_000_000 / CORE_HZ;
+    let shift = u32::from(icount_shift).min(MAX_ICOUNT_SHIFT);
+    INSTRUCTIONS_PER_STEP.store(ns_per_step >> shift, Ordering::Relaxed);
     syst.set_clock_source(SystClkSource::Core);
     syst.set_reload(RELOAD - 1);
     syst.clear_current();
@@ -86,12 +98,15 @@ pub fn init(mut syst: SYST) {
     syst.enable_counter();
 }
 
-/// Counts instructions under `-icount shift=0` (40 per SysTick step).
+/// Counts instructions under `-icount` (40 >> shift per SysTick step).
 pub struct SysTickMeter;
 
 impl CostMeter for SysTickMeter {
     const UNIT: &'static str = "instructions";
-    const UNITS_PER_TICK: u32 = 1_000_000_000 / CORE_HZ;
+
+    fn units_per_tick() -> u32 {
+        INSTRUCTIONS_PER_STEP.load(Ordering::Relaxed)
+    }
 
     #[inline(always)]
     fn now() -> u32 {
