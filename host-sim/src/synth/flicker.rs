@@ -110,18 +110,20 @@ impl Flicker {
     }
 }
 
+/// A burst of amplitude 0.5 for tests.
+#[cfg(test)]
+pub(crate) fn burst(start_s: f64, duration_s: f64, freq_hz: f64) -> Flicker {
+    Flicker {
+        start_s,
+        duration_s,
+        freq_hz,
+        amplitude_log: 0.5,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn burst(start_s: f64, duration_s: f64, freq_hz: f64) -> Flicker {
-        Flicker {
-            start_s,
-            duration_s,
-            freq_hz,
-            amplitude_log: 0.5,
-        }
-    }
 
     /// The window is rounded to whole periods, at least one.
     #[test]

@@ -575,6 +575,7 @@ fn peak_rate(events: &[Event], bin_us: u64) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use super::flicker::burst;
     use super::*;
 
     /// A small, motionless, noise-free camera (only the flicker produces events).
@@ -586,15 +587,6 @@ mod tests {
         cfg.sensor.noise_hz = 0.0;
         cfg.seed = 5;
         cfg
-    }
-
-    fn burst(start_s: f64, duration_s: f64, freq_hz: f64) -> Flicker {
-        Flicker {
-            start_s,
-            duration_s,
-            freq_hz,
-            amplitude_log: 0.5,
-        }
     }
 
     /// A still scene under a 100 Hz burst in [0.1, 0.15] s: every event lies inside the
