@@ -65,12 +65,33 @@ fn precheck(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// How many values a dataset may declare per byte it stores in the file, plus
+/// [`UNSTORED_VALUES`]. Parts of a dataset that were never written read as its fill value, so a
+/// file of a few KiB can declare billions of rows; reading them would exhaust memory (or overflow
+/// the size of the buffer). Compression of real data stays far below this ratio.
+const VALUES_PER_STORED_BYTE: u64 = 1024;
+/// Values a dataset may declare beyond [`VALUES_PER_STORED_BYTE`] (small unwritten datasets).
+const UNSTORED_VALUES: u64 = 1 << 16;
+
 /// Reads dataset `name` as f64 with its shape.
 fn dataset(file: &hdf5::File, path: &Path, name: &str) -> Result<(Vec<f64>, Vec<usize>)> {
     let ds = file
         .dataset(name)
         .map_err(|e| anyhow!("{}: no dataset `{name}`: {e}", path.display()))?;
     let shape = ds.shape();
+    let stored = ds.storage_size();
+    let values = shape
+        .iter()
+        .try_fold(1u64, |n, &d| n.checked_mul(u64::try_from(d).ok()?));
+    let limit = stored
+        .saturating_mul(VALUES_PER_STORED_BYTE)
+        .saturating_add(UNSTORED_VALUES);
+    if values.is_none_or(|v| v > limit) {
+        bail!(
+            "{}: dataset `{name}` declares shape {shape:?} but stores only {stored} bytes",
+            path.display()
+        );
+    }
     let data = ds
         .read_raw::<f64>()
         .map_err(|e| anyhow!("{}: cannot read `{name}`: {e}", path.display()))?;
