@@ -16,6 +16,7 @@ pub const TARGETS: &[&str] = &[
     "aer_receiver",
     "pipeline_events",
     "host_formats",
+    "mvsec_hdf5",
 ];
 
 /// `cargo` of the nightly toolchain, whatever toolchain runs this xtask.

@@ -1,6 +1,6 @@
 //! host-sim's file readers on arbitrary bytes (Prophesee .raw with its header, AEDAT 4.0, ECD
-//! text, CSV, ground truth, gyro): an error or a recording, never a panic. MVSEC HDF5 is left
-//! out: its parser is the HDF5 C library.
+//! text, CSV, ground truth, gyro): an error or a recording, never a panic. MVSEC HDF5 has its
+//! own target, `mvsec_hdf5`, which varies the content of well-formed HDF5 files instead of bytes.
 #![no_main]
 
 use std::path::PathBuf;
