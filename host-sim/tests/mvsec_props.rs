@@ -76,6 +76,8 @@ impl Ds {
 
     /// The values a reader gets (`None` for text).
     fn read_back(&self) -> Option<Vec<f64>> {
+        // Text never converts, even with no rows.
+        self.dtype.stored(0.0)?;
         if self.layout == Layout::Unwritten && !self.shape.is_empty() {
             return self.dtype.stored(0.0).map(|_| vec![0.0; self.values.len()]);
         }
