@@ -373,9 +373,7 @@ fn prepare_stream(a: &QemuArgs, stream: &Path) -> Result<StreamInfo> {
     }
     let line = String::from_utf8_lossy(&out.stdout).to_string();
     let get = |k: &str| -> Result<u64> {
-        key(&line, k)
-            .and_then(|v| v.parse().ok())
-            .with_context(|| format!("host-sim aer-stream printed no {k}: {line}"))
+        counter(&line, k).with_context(|| format!("host-sim aer-stream printed no {k}: {line}"))
     };
     let info = StreamInfo {
         t0_us: get("t0_us")?,
@@ -398,22 +396,31 @@ pub struct QemuReport {
     pub t0_us: u64,
 }
 
+impl QemuReport {
+    /// The summary's first line: `events=N frames_ok=N frames_bad=N frames_dropped=N
+    /// instructions_per_event=N`.
+    pub fn counters(&self) -> &str {
+        self.summary.lines().next().unwrap_or_default()
+    }
+
+    /// The summary's second line (`detail: ...`).
+    pub fn details(&self) -> &str {
+        self.summary.lines().nth(1).unwrap_or_default()
+    }
+}
+
 /// `cargo xtask qemu ...` (see the module docs).
 pub fn qemu(args: &[String]) -> Result<()> {
     let a = QemuArgs::parse(args)?;
     crate::setup()?;
     build(Board::Qemu)?;
     let report = qemu_run(&a)?;
-    let mut lines = report.summary.lines();
-    let main = lines.next().unwrap_or_default();
-    for l in lines {
-        eprintln!("{l}");
-    }
+    eprintln!("{}", report.details());
     eprintln!(
         "t0_us={} (add to the firmware's times for the recording's clock)",
         report.t0_us
     );
-    println!("{main}");
+    println!("{}", report.counters());
     Ok(())
 }
 
@@ -605,7 +612,7 @@ pub fn check() -> Result<()> {
 fn qemu_smoke() -> Result<()> {
     let work = root().join("target/xtask-qemu-test");
     std::fs::create_dir_all(&work).with_context(|| format!("cannot create {}", work.display()))?;
-    // A synthetic recording of at least 200 k events (1 s of the default scene: ~545 k).
+    // A synthetic recording of at least 200 k events (1 s of the default scene: ~208 k).
     let rec = work.join("rec");
     let mut c = host_sim();
     c.args(["synth", "--duration", "1", "--seed", "7", "--out"])
@@ -625,12 +632,7 @@ fn qemu_smoke() -> Result<()> {
             ..Default::default()
         };
         let report = qemu_run(&a)?;
-        let line = report
-            .summary
-            .lines()
-            .next()
-            .unwrap_or_default()
-            .to_string();
+        let line = report.counters();
         eprintln!("xtask: qemu ({layout}): {line}");
         let host_csv = work.join(format!("host-{layout}.csv"));
         let mut c = host_sim();
@@ -651,15 +653,13 @@ fn qemu_smoke() -> Result<()> {
                 host_csv.display()
             );
         }
-        let n = key(&line, "events")
-            .and_then(|v| v.parse::<u64>().ok())
-            .unwrap_or(0);
+        let n = counter(line, "events").unwrap_or(0);
         if n < 200_000 {
             bail!("qemu check: only {n} events (at least 200 k wanted): {line}");
         }
         eprintln!("xtask: QEMU output identical to host-sim run ({layout}) on {n} events");
         for (k, want) in [("frames_bad", 0u64), ("frames_dropped", 0)] {
-            if key(&line, k).and_then(|v| v.parse::<u64>().ok()) != Some(want) {
+            if counter(line, k) != Some(want) {
                 bail!("qemu check: expected {k}={want}: {line}");
             }
         }
@@ -693,12 +693,7 @@ fn qemu_smoke() -> Result<()> {
         ..Default::default()
     };
     let report = qemu_run(&b)?;
-    let line = report
-        .summary
-        .lines()
-        .next()
-        .unwrap_or_default()
-        .to_string();
+    let line = report.counters();
     eprintln!("xtask: qemu corrupted stream: {line}");
     // What the host's frame decoder finds in the same bytes: the firmware must process every
     // intact frame and count the same bad and missing ones.
@@ -714,7 +709,7 @@ fn qemu_smoke() -> Result<()> {
         ("frames_bad", want.bad),
         ("frames_dropped", want.dropped),
     ] {
-        if counter(&line, k) != Some(v) {
+        if counter(line, k) != Some(v) {
             bail!("qemu corrupted stream: expected {k}={v} (host frame decoder): {line}");
         }
     }
@@ -733,7 +728,7 @@ fn qemu_smoke() -> Result<()> {
     Ok(())
 }
 
-/// A counter `k=N` of the firmware's summary line.
+/// The number `N` of a `k=N` field in a line of `key=value` fields.
 fn counter(line: &str, k: &str) -> Option<u64> {
     key(line, k).and_then(|v| v.parse().ok())
 }
@@ -835,22 +830,20 @@ fn qemu_overload(work: &Path) -> Result<()> {
     a.live = true;
     a.paced = true;
     let report = qemu_run(&a)?;
-    let mut lines = report.summary.lines();
-    let line = lines.next().unwrap_or_default().to_string();
-    let detail = lines.next().unwrap_or_default().to_string();
+    let (line, detail) = (report.counters(), report.details());
     eprintln!("xtask: qemu overload (live, paced): {line}");
-    let overflow = counter(&detail, "frames_overflow").unwrap_or(0);
+    let overflow = counter(detail, "frames_overflow").unwrap_or(0);
     if overflow == 0 {
         bail!("qemu overload: no frame was dropped (the storm did not overload): {detail}");
     }
-    if counter(&line, "frames_bad") != Some(0)
-        || counter(&detail, "frames_gap") != Some(0)
-        || counter(&detail, "source_errors") != Some(0)
+    if counter(line, "frames_bad") != Some(0)
+        || counter(detail, "frames_gap") != Some(0)
+        || counter(detail, "source_errors") != Some(0)
     {
         bail!("qemu overload: bytes were lost (only whole frames dropped from the queue expected): {detail}");
     }
-    let received = counter(&detail, "frames_received").unwrap_or(0);
-    let processed = counter(&line, "frames_ok").unwrap_or(0);
+    let received = counter(detail, "frames_received").unwrap_or(0);
+    let processed = counter(line, "frames_ok").unwrap_or(0);
     if processed + overflow != received {
         bail!(
             "qemu overload: {received} frames received != {processed} processed + {overflow} dropped"

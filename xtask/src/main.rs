@@ -196,12 +196,7 @@ fn demo(_args: &[String]) -> Result<()> {
     };
     eprintln!("xtask: running the firmware in QEMU (mps2-an386, Cortex-M4F)");
     let report = firmware::qemu_run(&a)?;
-    let summary = report
-        .summary
-        .lines()
-        .next()
-        .unwrap_or_default()
-        .to_string();
+    let summary = report.counters();
     let mut c = firmware::host_sim();
     c.args(["eval", "--yaw"])
         .arg(&yaw)
