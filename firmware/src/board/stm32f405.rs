@@ -46,14 +46,15 @@ bind_interrupts!(struct Irqs {
 
 /// Sensor: DAVIS346, 346 x 260 px, f = 226 px.
 const SENSOR: (u16, u16) = (346, 260);
-/// Focal length (px) and principal point column (px), U16F16.
+/// Focal length (px), U16F16.
 const FOCAL_PX: U16F16 = U16F16::const_from_int(226);
-const CX: U16F16 = U16F16::from_bits(172 << 16 | 0x8000);
+/// Principal point column (px): the sensor's centre, (width - 1) / 2.
+const CX: U16F16 = U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2);
 /// Which network runs.
 const LAYOUT: BoardLayout = BoardLayout::PaperBoxes;
 /// The largest dense window that fits the CCM: 192 x 40 pixels (7680 cells of 8 bytes,
 /// 61 440 B, 15 200 units), centred.
-const DENSE_WINDOW: (u16, u16, u16, u16) = ((346 - 192) / 2, (260 - 40) / 2, 192, 40);
+const DENSE_WINDOW: (u16, u16, u16, u16) = ((SENSOR.0 - 192) / 2, (SENSOR.1 - 40) / 2, 192, 40);
 /// Cells reserved in CCM (the larger of the two layouts).
 const MAX_CELLS: usize = 7680;
 /// SPI DMA ring size (bytes): 4 KiB is ~2 ms at 2 MB/s.
