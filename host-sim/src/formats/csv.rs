@@ -14,37 +14,14 @@ pub const CSV_HEADER: &str = "t_us,x,y,p";
 
 /// Reads `t_us,x,y,p` events (header line optional, `#` comments and blank lines skipped).
 pub(super) fn read_events(path: &Path) -> Result<Recording> {
-    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut events = Vec::with_capacity(buf.len() / 24);
-    let mut first = true;
-    for (line_no, (off, line)) in Lines::new(&buf).enumerate() {
-        if text::is_blank_or_comment(line) {
-            continue;
-        }
-        let is_first = std::mem::replace(&mut first, false);
-        let mut f = csv_fields(line);
-        let parsed = (|| {
-            let t_us = text::parse_u64(f.next()?)?;
-            let x = text::parse_u16(f.next()?)?;
-            let y = text::parse_u16(f.next()?)?;
-            let on = text::parse_polarity(f.next()?)?;
-            f.next().is_none().then_some(HostEvent { t_us, x, y, on })
-        })();
-        match parsed {
-            Some(e) => events.push(e),
-            None if is_first && line.first().is_some_and(u8::is_ascii_alphabetic) => {}
-            None => {
-                return Err(line_error(
-                    path,
-                    &buf,
-                    off,
-                    line_no + 1,
-                    line,
-                    "`t_us,x,y,p` (integers, p = 0 or 1)",
-                ));
-            }
-        }
-    }
+    let events = text::read_event_lines(
+        path,
+        text::Separator::Comma,
+        text::parse_u64,
+        true,
+        "`t_us,x,y,p` (integers, p = 0 or 1)",
+        24,
+    )?;
     Ok(Recording {
         events,
         width: None,

@@ -9,39 +9,19 @@ use anyhow::{anyhow, Context, Result};
 
 use super::rotation::{yaw_rates_central, Mat3};
 use super::text::{self, line_error, ws_fields, Lines};
-use super::{Format, GtSample, GyroSample, HostEvent, Intrinsics, Recording};
+use super::{Format, GtSample, GyroSample, Intrinsics, Recording};
 
 /// Reads `events.txt`: one `t[s] x y p` per line (p = 1 ON, 0 OFF), times converted to µs
 /// exactly.
 pub(super) fn read_events(path: &Path) -> Result<Recording> {
-    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut events = Vec::with_capacity(buf.len() / 18);
-    for (line_no, (off, line)) in Lines::new(&buf).enumerate() {
-        if text::is_blank_or_comment(line) {
-            continue;
-        }
-        let mut f = ws_fields(line);
-        let parsed = (|| {
-            let t_us = text::parse_seconds_us(f.next()?)?;
-            let x = text::parse_u16(f.next()?)?;
-            let y = text::parse_u16(f.next()?)?;
-            let on = text::parse_polarity(f.next()?)?;
-            f.next().is_none().then_some(HostEvent { t_us, x, y, on })
-        })();
-        match parsed {
-            Some(e) => events.push(e),
-            None => {
-                return Err(line_error(
-                    path,
-                    &buf,
-                    off,
-                    line_no + 1,
-                    line,
-                    "`t x y p` (t in s, p = 0 or 1)",
-                ))
-            }
-        }
-    }
+    let events = text::read_event_lines(
+        path,
+        text::Separator::Whitespace,
+        text::parse_seconds_us,
+        false,
+        "`t x y p` (t in s, p = 0 or 1)",
+        18,
+    )?;
     Ok(Recording {
         events,
         width: None,

@@ -5,6 +5,8 @@ use std::path::Path;
 
 use anyhow::{anyhow, Error};
 
+use super::HostEvent;
+
 /// What the first meaningful line of a text file looks like.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
@@ -196,6 +198,61 @@ pub fn seconds_to_us(v: f64) -> Option<u64> {
         return None;
     }
     Some(us as u64)
+}
+
+/// How the fields of an event line are separated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Separator {
+    /// Commas ([`csv_fields`]).
+    Comma,
+    /// Spaces or tabs ([`ws_fields`]).
+    Whitespace,
+}
+
+/// The event of one line `T X Y P`: exactly four fields, `time` parses `T` to µs.
+fn event_of<'l>(
+    mut f: impl Iterator<Item = &'l [u8]>,
+    time: impl Fn(&[u8]) -> Option<u64>,
+) -> Option<HostEvent> {
+    let t_us = time(f.next()?)?;
+    let x = parse_u16(f.next()?)?;
+    let y = parse_u16(f.next()?)?;
+    let on = parse_polarity(f.next()?)?;
+    f.next().is_none().then_some(HostEvent { t_us, x, y, on })
+}
+
+/// Reads one event per line, `T X Y P` separated by `sep`, with `time` turning `T` into µs
+/// (blank lines and `#` comments skipped; with `header`, a first line starting with a letter
+/// is skipped too). A bad line is an error naming the file, line and byte offset, with
+/// `expected` saying what the line should hold. `bytes_per_event` sizes the first allocation.
+pub fn read_event_lines(
+    path: &Path,
+    sep: Separator,
+    time: impl Fn(&[u8]) -> Option<u64>,
+    header: bool,
+    expected: &str,
+    bytes_per_event: usize,
+) -> anyhow::Result<Vec<HostEvent>> {
+    use anyhow::Context;
+    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut events = Vec::with_capacity(buf.len() / bytes_per_event.max(1));
+    let mut first = true;
+    for (line_no, (off, line)) in Lines::new(&buf).enumerate() {
+        if is_blank_or_comment(line) {
+            continue;
+        }
+        let is_first = std::mem::replace(&mut first, false);
+        let parsed = match sep {
+            Separator::Comma => event_of(csv_fields(line), &time),
+            Separator::Whitespace => event_of(ws_fields(line), &time),
+        };
+        match parsed {
+            Some(e) => events.push(e),
+            None if header && is_first && line.first().is_some_and(u8::is_ascii_alphabetic) => {}
+            None => return Err(line_error(path, &buf, off, line_no + 1, line, expected)),
+        }
+    }
+    Ok(events)
 }
 
 /// Error for a malformed line: names the file, the line number (1-based) and its byte offset;
