@@ -233,23 +233,6 @@ struct Parsed {
     has_imu: bool,
 }
 
-/// Reads exactly `buf.len()` bytes; `Ok(false)` at a clean end of file before the first byte.
-fn read_exact_or_eof(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
-    let mut n = 0;
-    while let Some(rest) = buf.get_mut(n..) {
-        if rest.is_empty() {
-            break;
-        }
-        match r.read(rest) {
-            Ok(0) => break,
-            Ok(k) => n += k,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(n)
-}
-
 fn opts() -> VerifierOptions {
     VerifierOptions {
         max_tables: usize::MAX,
@@ -266,12 +249,12 @@ fn parse(path: &Path, want_events: bool, want_imu: bool) -> Result<Parsed> {
     let io = |e: std::io::Error| anyhow!("cannot read {p}: {e}");
 
     let mut magic = [0u8; 14];
-    let n = read_exact_or_eof(&mut r, &mut magic).map_err(io)?;
+    let n = super::read_up_to(&mut r, &mut magic).map_err(io)?;
     if n < MAGIC.len() || magic != MAGIC {
         bail!("{p}: not an AEDAT 4.0 file (no `#!AER-DAT4.0` line at byte 0)");
     }
     let mut len4 = [0u8; 4];
-    if read_exact_or_eof(&mut r, &mut len4).map_err(io)? < 4 {
+    if super::read_up_to(&mut r, &mut len4).map_err(io)? < 4 {
         bail!("{p}: truncated AEDAT 4.0 header at byte 14");
     }
     let header_len = u32::from_le_bytes(len4) as usize;
@@ -284,7 +267,7 @@ fn parse(path: &Path, want_events: bool, want_imu: bool) -> Result<Parsed> {
         .get_mut(..4)
         .unwrap_or_default()
         .copy_from_slice(&len4);
-    if read_exact_or_eof(&mut r, header.get_mut(4..).unwrap_or_default()).map_err(io)? < header_len
+    if super::read_up_to(&mut r, header.get_mut(4..).unwrap_or_default()).map_err(io)? < header_len
     {
         bail!("{p}: truncated AEDAT 4.0 header at byte 18");
     }
@@ -325,7 +308,7 @@ fn parse(path: &Path, want_events: bool, want_imu: bool) -> Result<Parsed> {
             break;
         }
         let mut ph = [0u8; 8];
-        let got = read_exact_or_eof(&mut r, &mut ph).map_err(io)?;
+        let got = super::read_up_to(&mut r, &mut ph).map_err(io)?;
         if got == 0 {
             if table_pos >= 0 && (table_pos as u64) > pos {
                 bail!("{p}: truncated AEDAT 4.0 file at byte {pos}: the header announces the file data table at byte {table_pos}");
@@ -358,7 +341,7 @@ fn parse(path: &Path, want_events: bool, want_imu: bool) -> Result<Parsed> {
             continue;
         }
         body.resize(size, 0);
-        if read_exact_or_eof(&mut r, &mut body).map_err(io)? < size {
+        if super::read_up_to(&mut r, &mut body).map_err(io)? < size {
             bail!("{p}: truncated AEDAT 4.0 packet at byte {pos}");
         }
         let data: &[u8] = match compression {

@@ -6,7 +6,6 @@
 //! stay absolute).
 
 use std::fs::File;
-use std::io::Read;
 use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -27,15 +26,7 @@ fn precheck(path: &Path) -> Result<()> {
     let mut head = [0u8; 64];
     let mut f = File::open(path).with_context(|| format!("cannot open {p}"))?;
     let len = f.metadata().map(|m| m.len()).unwrap_or(0);
-    let mut n = 0;
-    while n < head.len() {
-        match f.read(head.get_mut(n..).unwrap_or_default()) {
-            Ok(0) => break,
-            Ok(k) => n += k,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(anyhow!("cannot read {p}: {e}")),
-        }
-    }
+    let n = super::read_up_to(&mut f, &mut head).map_err(|e| anyhow!("cannot read {p}: {e}"))?;
     if !head.starts_with(super::HDF5_MAGIC) {
         bail!("{p}: not an HDF5 file (no HDF5 signature at byte 0)");
     }
