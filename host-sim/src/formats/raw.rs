@@ -15,7 +15,7 @@
 //! The header ends at `% end` or at the first line that does not start with `%`.
 
 use std::fs::File;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
@@ -171,7 +171,7 @@ pub fn read_raw(path: &Path, format: Format) -> Result<(Recording, DecodeStats)>
     let mut file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
     let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
     let mut buf = vec![0u8; CHUNK];
-    let first = read_full(&mut file, &mut buf)
+    let first = super::read_up_to(&mut file, &mut buf)
         .with_context(|| format!("cannot read {}", path.display()))?;
     let header = if buf.first() == Some(&b'%') && first > 0 {
         let h = parse_header(buf.get(..first).unwrap_or_default());
@@ -192,44 +192,20 @@ pub fn read_raw(path: &Path, format: Format) -> Result<(Recording, DecodeStats)>
     let mut events = Vec::with_capacity((file_len.saturating_sub(data_start as u64) / 3) as usize);
     let offset = header.time_offset_us;
     let head_data = buf.get(data_start..first).unwrap_or_default().to_vec();
+    let mut data = DataPart {
+        path,
+        format,
+        file: &mut file,
+        head: &head_data,
+        data_start,
+        time_offset_us: offset,
+        events: &mut events,
+    };
     let stats = match format {
-        Format::Evt3 => decode(
-            Evt3Decoder::new(),
-            path,
-            format,
-            &mut file,
-            &head_data,
-            data_start,
-            offset,
-            &mut events,
-        )?,
-        Format::Evt2 => decode(
-            Evt2Decoder::new(),
-            path,
-            format,
-            &mut file,
-            &head_data,
-            data_start,
-            offset,
-            &mut events,
-        )?,
-        Format::Evt21 => {
-            let dec = if header.evt21_legacy {
-                Evt21Decoder::legacy()
-            } else {
-                Evt21Decoder::new()
-            };
-            decode(
-                dec,
-                path,
-                format,
-                &mut file,
-                &head_data,
-                data_start,
-                offset,
-                &mut events,
-            )?
-        }
+        Format::Evt3 => data.decode(Evt3Decoder::new())?,
+        Format::Evt2 => data.decode(Evt2Decoder::new())?,
+        Format::Evt21 if header.evt21_legacy => data.decode(Evt21Decoder::legacy())?,
+        Format::Evt21 => data.decode(Evt21Decoder::new())?,
         _ => bail!(
             "{}: {format} is not a Prophesee word format",
             path.display()
@@ -246,80 +222,73 @@ pub fn read_raw(path: &Path, format: Format) -> Result<(Recording, DecodeStats)>
     Ok((rec, stats))
 }
 
-/// Reads until `buf` is full or the file ends; returns the bytes read.
-fn read_full(file: &mut File, buf: &mut [u8]) -> std::io::Result<usize> {
-    let mut n = 0;
-    while let Some(rest) = buf.get_mut(n..) {
-        if rest.is_empty() {
-            break;
-        }
-        match file.read(rest) {
-            Ok(0) => break,
-            Ok(k) => n += k,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(n)
+/// The data part of a `.raw` file: its first bytes (read with the header), the rest of the
+/// file, and where the decoded events go.
+struct DataPart<'a> {
+    path: &'a Path,
+    format: Format,
+    file: &'a mut File,
+    /// Data bytes already read with the header.
+    head: &'a [u8],
+    /// File offset of the first data byte.
+    data_start: usize,
+    /// Added to every event time (µs).
+    time_offset_us: u64,
+    events: &'a mut Vec<HostEvent>,
 }
 
-/// Streams the data part of a `.raw` file through `dec`.
-#[allow(clippy::too_many_arguments)]
-fn decode<D: StreamDecoder>(
-    mut dec: D,
-    path: &Path,
-    format: Format,
-    file: &mut File,
-    head_data: &[u8],
-    data_start: usize,
-    time_offset_us: u64,
-    events: &mut Vec<HostEvent>,
-) -> Result<DecodeStats> {
-    let mut sink = |e: core_nostd::event::Event64| {
-        events.push(HostEvent {
-            t_us: e.t_us.wrapping_add(time_offset_us),
-            x: e.x,
-            y: e.y,
-            on: e.on,
-        });
-    };
-    dec.push64(head_data, &mut sink);
-    let mut buf = vec![0u8; CHUNK];
-    loop {
-        let n =
-            read_full(file, &mut buf).with_context(|| format!("cannot read {}", path.display()))?;
-        if n == 0 {
-            break;
+impl DataPart<'_> {
+    /// Streams the data through `dec` into `events`.
+    fn decode<D: StreamDecoder>(&mut self, mut dec: D) -> Result<DecodeStats> {
+        let (path, format, data_start) = (self.path, self.format, self.data_start);
+        let time_offset_us = self.time_offset_us;
+        let events = &mut *self.events;
+        let mut sink = |e: core_nostd::event::Event64| {
+            events.push(HostEvent {
+                t_us: e.t_us.wrapping_add(time_offset_us),
+                x: e.x,
+                y: e.y,
+                on: e.on,
+            });
+        };
+        dec.push64(self.head, &mut sink);
+        let mut buf = vec![0u8; CHUNK];
+        loop {
+            let n = super::read_up_to(self.file, &mut buf)
+                .with_context(|| format!("cannot read {}", path.display()))?;
+            if n == 0 {
+                break;
+            }
+            dec.push64(buf.get(..n).unwrap_or_default(), &mut sink);
         }
-        dec.push64(buf.get(..n).unwrap_or_default(), &mut sink);
+        let stats = dec.stats();
+        let at = |o: u64| o + data_start as u64;
+        if let Err(t) = dec.finish() {
+            bail!(
+                "{}: truncated {format} stream at byte {} ({} of {} bytes of the last word)",
+                path.display(),
+                at(t.offset),
+                t.have,
+                t.word_bytes
+            );
+        }
+        if let Some(o) = stats.first_invalid_at {
+            bail!(
+                "{}: malformed {format} stream: word of an undefined type at byte {} ({} such words; wrong format?)",
+                path.display(),
+                at(o),
+                stats.invalid
+            );
+        }
+        if dec.bytes_pushed() > 0 && stats.time_high == 0 {
+            bail!(
+                "{}: malformed {format} stream: no TIME_HIGH word in {} bytes of data starting at byte {data_start}",
+                path.display(),
+                dec.bytes_pushed()
+            );
+        }
+        Ok(stats)
     }
-    let stats = dec.stats();
-    let at = |o: u64| o + data_start as u64;
-    if let Err(t) = dec.finish() {
-        bail!(
-            "{}: truncated {format} stream at byte {} ({} of {} bytes of the last word)",
-            path.display(),
-            at(t.offset),
-            t.have,
-            t.word_bytes
-        );
-    }
-    if let Some(o) = stats.first_invalid_at {
-        bail!(
-            "{}: malformed {format} stream: word of an undefined type at byte {} ({} such words; wrong format?)",
-            path.display(),
-            at(o),
-            stats.invalid
-        );
-    }
-    if dec.bytes_pushed() > 0 && stats.time_high == 0 {
-        bail!(
-            "{}: malformed {format} stream: no TIME_HIGH word in {} bytes of data starting at byte {data_start}",
-            path.display(),
-            dec.bytes_pushed()
-        );
-    }
-    Ok(stats)
 }
 
 /// Writes events as a Prophesee EVT 3.0 `.raw` file with a header (`evt 3.0`,
