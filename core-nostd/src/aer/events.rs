@@ -84,17 +84,11 @@ impl core::fmt::Display for EncodeEventError {
 /// frame flagged STREAM_START).
 #[derive(Clone, Debug)]
 pub struct EventEncoder {
-    /// The frame being built; payload from `frame::HEADER_BYTES`.
-    buf: [u8; frame::MAX_FRAME],
-    /// Payload bytes so far; 0 = no open frame.
-    len: usize,
+    frame: FrameBuilder,
     /// Running time (µs) after the last word.
     t: u32,
     /// Time base of the open frame.
     t_first: u32,
-    seq: u16,
-    next_flags: u8,
-    max_payload: usize,
     max_span_us: u32,
 }
 
@@ -120,34 +114,23 @@ impl EventEncoder {
     /// event time from their first event.
     #[must_use]
     pub const fn with_limits(max_payload: usize, max_span_us: u32) -> Self {
-        let p = if max_payload > frame::MAX_PAYLOAD {
-            frame::MAX_PAYLOAD
-        } else if max_payload < 12 {
-            12
-        } else {
-            max_payload
-        };
         Self {
-            buf: [0; frame::MAX_FRAME],
-            len: 0,
+            frame: FrameBuilder::new(max_payload, 12, 4),
             t: 0,
             t_first: 0,
-            seq: 0,
-            next_flags: frame::flags::STREAM_START,
-            max_payload: p & !3,
             max_span_us,
         }
     }
 
     /// Sets [`frame::flags::SOURCE_OVERFLOW`] on the next frame (the caller lost events).
     pub fn mark_overflow(&mut self) {
-        self.next_flags |= frame::flags::SOURCE_OVERFLOW;
+        self.frame.next_flags |= frame::flags::SOURCE_OVERFLOW;
     }
 
     /// Sequence number of the next frame.
     #[must_use]
     pub const fn next_seq(&self) -> u16 {
-        self.seq
+        self.frame.seq
     }
 
     /// Adds one event; `out` receives each frame completed on the way.
@@ -161,10 +144,10 @@ impl EventEncoder {
         let dt = ev.t_us.wrapping_sub(self.t);
         let span = ev.t_us.wrapping_sub(self.t_first);
         let words = if dt > MAX_EVENT_DT { 8 } else { 4 };
-        let reopen = self.len == 0
+        let reopen = self.frame.len == 0
             || dt > MAX_STEP_DT
             || span > self.max_span_us
-            || self.len + words > self.max_payload;
+            || !self.frame.fits(words);
         let dt = if reopen {
             self.flush(&mut out);
             self.t = ev.t_us;
@@ -191,25 +174,71 @@ impl EventEncoder {
     }
 
     fn put(&mut self, w: u32) {
-        let at = frame::HEADER_BYTES + self.len;
-        if let Some(b) = self.buf.get_mut(at..at + 4) {
-            b.copy_from_slice(&w.to_le_bytes());
-            self.len += 4;
-        }
+        self.frame.put(&w.to_le_bytes());
     }
 
     /// Closes the open frame, if any, and hands it to `out`.
-    pub fn flush<O: FnMut(&[u8])>(&mut self, mut out: O) {
-        if self.len < 4 {
+    pub fn flush<O: FnMut(&[u8])>(&mut self, out: O) {
+        self.frame.flush(Kind::Events, out);
+    }
+}
+
+/// The frame an encoder builds: payload words after room for the header, then sealed with
+/// sequence number and flags. Shared by [`EventEncoder`] and [`Evt3Framer`].
+#[derive(Clone, Debug)]
+struct FrameBuilder {
+    /// The frame being built; payload from `frame::HEADER_BYTES`.
+    buf: [u8; frame::MAX_FRAME],
+    /// Payload bytes so far; 0 = no open frame.
+    len: usize,
+    /// Sequence number of the next frame.
+    seq: u16,
+    /// Flags of the next frame (STREAM_START on the first).
+    next_flags: u8,
+    /// Largest payload, bytes: a whole number of words.
+    max_payload: usize,
+}
+
+impl FrameBuilder {
+    /// Payload limit `max_payload` clamped to `min ..= frame::MAX_PAYLOAD` and rounded down to
+    /// whole words of `word` bytes (a power of two).
+    const fn new(max_payload: usize, min: usize, word: usize) -> Self {
+        let p = if max_payload > frame::MAX_PAYLOAD {
+            frame::MAX_PAYLOAD
+        } else if max_payload < min {
+            min
+        } else {
+            max_payload
+        };
+        Self {
+            buf: [0; frame::MAX_FRAME],
+            len: 0,
+            seq: 0,
+            next_flags: frame::flags::STREAM_START,
+            max_payload: p & !(word - 1),
+        }
+    }
+
+    /// Whether `bytes` more fit the open frame.
+    fn fits(&self, bytes: usize) -> bool {
+        self.len + bytes <= self.max_payload
+    }
+
+    /// Appends payload bytes (ignored past the buffer, which [`Self::fits`] prevents).
+    fn put(&mut self, bytes: &[u8]) {
+        let at = frame::HEADER_BYTES + self.len;
+        if let Some(b) = self.buf.get_mut(at..at + bytes.len()) {
+            b.copy_from_slice(bytes);
+            self.len += bytes.len();
+        }
+    }
+
+    /// Seals the open frame, if any, as `kind`, hands it to `out` and starts the next one.
+    fn flush<O: FnMut(&[u8])>(&mut self, kind: Kind, mut out: O) {
+        if self.len == 0 {
             return;
         }
-        if let Ok(n) = seal_frame(
-            Kind::Events,
-            self.next_flags,
-            self.seq,
-            self.len,
-            &mut self.buf,
-        ) {
+        if let Ok(n) = seal_frame(kind, self.next_flags, self.seq, self.len, &mut self.buf) {
             if let Some(f) = self.buf.get(..n) {
                 out(f);
             }
@@ -227,11 +256,7 @@ impl EventEncoder {
 /// lost frame does not give the next frame's events a wrong time, row or column.
 #[derive(Clone, Debug)]
 pub struct Evt3Framer {
-    buf: [u8; frame::MAX_FRAME],
-    len: usize,
-    seq: u16,
-    next_flags: u8,
-    max_payload: usize,
+    frame: FrameBuilder,
     /// Last TIME_HIGH, TIME_LOW, ADDR_Y words; VECT_BASE_X word with the base advanced past
     /// the vector words seen since.
     state: [Option<u16>; 4],
@@ -254,26 +279,15 @@ impl Evt3Framer {
     /// [`frame::MAX_PAYLOAD`], rounded down to whole words).
     #[must_use]
     pub const fn with_max_payload(max_payload: usize) -> Self {
-        let p = if max_payload > frame::MAX_PAYLOAD {
-            frame::MAX_PAYLOAD
-        } else if max_payload < 16 {
-            16
-        } else {
-            max_payload
-        };
         Self {
-            buf: [0; frame::MAX_FRAME],
-            len: 0,
-            seq: 0,
-            next_flags: frame::flags::STREAM_START,
-            max_payload: p & !1,
+            frame: FrameBuilder::new(max_payload, 16, 2),
             state: [None; 4],
         }
     }
 
     /// Adds one word; `out` receives each frame completed on the way.
     pub fn push<O: FnMut(&[u8])>(&mut self, word: u16, mut out: O) {
-        if self.len + 2 > self.max_payload {
+        if !self.frame.fits(2) {
             self.flush(&mut out);
             let state = self.state;
             for w in state.into_iter().flatten() {
@@ -285,11 +299,7 @@ impl Evt3Framer {
     }
 
     fn put(&mut self, w: u16) {
-        let at = frame::HEADER_BYTES + self.len;
-        if let Some(b) = self.buf.get_mut(at..at + 2) {
-            b.copy_from_slice(&w.to_le_bytes());
-            self.len += 2;
-        }
+        self.frame.put(&w.to_le_bytes());
     }
 
     fn track(&mut self, w: u16) {
@@ -315,24 +325,8 @@ impl Evt3Framer {
     }
 
     /// Closes the open frame, if any, and hands it to `out`.
-    pub fn flush<O: FnMut(&[u8])>(&mut self, mut out: O) {
-        if self.len == 0 {
-            return;
-        }
-        if let Ok(n) = seal_frame(
-            Kind::Evt3,
-            self.next_flags,
-            self.seq,
-            self.len,
-            &mut self.buf,
-        ) {
-            if let Some(f) = self.buf.get(..n) {
-                out(f);
-            }
-        }
-        self.seq = self.seq.wrapping_add(1);
-        self.next_flags = 0;
-        self.len = 0;
+    pub fn flush<O: FnMut(&[u8])>(&mut self, out: O) {
+        self.frame.flush(Kind::Evt3, out);
     }
 }
 
