@@ -2,6 +2,7 @@
 //! in, yaw rate out. `no_std`, no heap, and no panic on any bytes. `docs/wire-formats.md` has
 //! the tables.
 //!
+//! - [`config`]: the configuration frame (camera, network, output rate), versioned.
 //! - [`crc`]: CRC-32 and CRC-16, tables built by `const fn`.
 //! - [`framer`]: frame reassembly from chunks of any size, resynchronising after corruption
 //!   without ever losing an intact frame.
@@ -10,6 +11,8 @@
 //! - [`events`]: payloads: AER events (4 bytes each while events are at most 255 µs apart) or
 //!   raw EVT 3.0 words decoded by [`crate::evt::Evt3Decoder`]; encoders and the
 //!   [`Receiver`](events::Receiver) (bytes in, events out).
+//! - [`link`]: the SPI link's receiver: bit-slip, NSS, overrun and mode-fault recovery in
+//!   front of the frame decoder.
 //! - [`yaw`]: the 14-byte yaw output frame and its streaming decoder.
 //!
 //! ```
@@ -33,8 +36,10 @@
 //! assert_eq!(rx.frame_stats().bad, 0);
 //! ```
 
+pub mod config;
 pub mod crc;
 pub mod events;
 pub mod frame;
 pub mod framer;
+pub mod link;
 pub mod yaw;

@@ -17,16 +17,19 @@ use anyhow::{bail, Context, Result};
 
 use crate::{cargo, root, run};
 
-/// The firmware's ELF for a board.
-fn elf(board: Board) -> PathBuf {
-    root()
-        .join("firmware/target")
+/// Each board's own target dir (the boards share the target triple and the binary name, so one
+/// dir per board keeps their ELFs apart): `firmware/target/<board>`.
+fn target_dir(board: Board) -> PathBuf {
+    root().join("firmware/target").join(board.name())
+}
+
+/// The firmware's ELF for a board:
+/// `firmware/target/<board>/thumbv7em-none-eabihf/release/tde-firmware`.
+pub fn elf(board: Board) -> PathBuf {
+    target_dir(board)
         .join(crate::TARGET)
         .join("release")
-        .join(match board {
-            Board::Qemu => "tde-firmware",
-            Board::Stm32f405 => "tde-firmware",
-        })
+        .join("tde-firmware")
 }
 
 /// The SPI flash QEMU emulates (n25q128): the drive file must be exactly this large.
@@ -40,14 +43,22 @@ const AER_SYNC: [u8; 2] = [0xA5, 0xE7];
 pub enum Board {
     Qemu,
     Stm32f405,
+    Stm32h743,
 }
+
+/// Every board, in build order.
+pub const BOARDS: [Board; 3] = [Board::Qemu, Board::Stm32f405, Board::Stm32h743];
+
+/// A memory region of a board: (section names that fill it, size in bytes, what it is).
+type Region = (&'static [&'static str], u64, &'static str);
 
 impl Board {
     fn parse(s: &str) -> Result<Self> {
         match s {
             "qemu" => Ok(Self::Qemu),
             "stm32f405" => Ok(Self::Stm32f405),
-            _ => bail!("unknown board `{s}` (qemu, stm32f405)"),
+            "stm32h743" => Ok(Self::Stm32h743),
+            _ => bail!("unknown board `{s}` (qemu, stm32f405, stm32h743)"),
         }
     }
 
@@ -55,6 +66,7 @@ impl Board {
         match self {
             Self::Qemu => "qemu",
             Self::Stm32f405 => "stm32f405",
+            Self::Stm32h743 => "stm32h743",
         }
     }
 
@@ -62,27 +74,90 @@ impl Board {
         match self {
             Self::Qemu => &["--features", "board-qemu"],
             Self::Stm32f405 => &["--no-default-features", "--features", "board-stm32f405"],
+            Self::Stm32h743 => &["--no-default-features", "--features", "board-stm32h743"],
+        }
+    }
+
+    /// The probe-rs chip name (hardware boards only).
+    fn chip(self) -> Option<&'static str> {
+        match self {
+            Self::Qemu => None,
+            Self::Stm32f405 => Some("STM32F405RGTx"),
+            Self::Stm32h743 => Some("STM32H743VITx"),
+        }
+    }
+
+    /// Flash and main RAM (stack, .data, .bss) in bytes, as in `firmware/boards/*/memory.x`.
+    fn flash_ram(self) -> (u64, u64) {
+        match self {
+            Self::Qemu => (4 * 1024 * 1024, 4 * 1024 * 1024),
+            Self::Stm32f405 => (1024 * 1024, 128 * 1024),
+            Self::Stm32h743 => (2048 * 1024, 128 * 1024),
+        }
+    }
+
+    /// The other RAM regions the firmware places sections in; a section larger than its
+    /// region fails the size check.
+    fn regions(self) -> &'static [Region] {
+        match self {
+            Self::Qemu => &[],
+            Self::Stm32f405 => &[(&[".ccmram"], 64 * 1024, "CCM")],
+            Self::Stm32h743 => &[
+                (&[".axisram"], 512 * 1024, "AXI SRAM"),
+                (&[".sram1"], 128 * 1024, "SRAM1"),
+            ],
         }
     }
 }
 
-fn firmware_cargo() -> Command {
+/// Adds the Cortex-M target through rustup when it is missing (rustup installs the targets of
+/// `rust-toolchain.toml` only together with the toolchain). Without rustup nothing is checked.
+pub fn ensure_target() -> Result<()> {
+    let out = Command::new("rustup")
+        .current_dir(root())
+        .args(["target", "list", "--installed"])
+        .output();
+    let Ok(out) = out else {
+        eprintln!(
+            "xtask: rustup not found; assuming {} is installed",
+            crate::TARGET
+        );
+        return Ok(());
+    };
+    if !out.status.success() {
+        bail!(
+            "rustup target list --installed failed: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    let installed = String::from_utf8_lossy(&out.stdout);
+    if installed.lines().any(|l| l.trim() == crate::TARGET) {
+        return Ok(());
+    }
+    let mut c = Command::new("rustup");
+    c.current_dir(root()).args(["target", "add", crate::TARGET]);
+    run(&format!("rustup target add {}", crate::TARGET), c)
+}
+
+fn firmware_cargo(board: Board) -> Command {
     let mut c = cargo();
     c.current_dir(root().join("firmware"));
-    // The firmware is its own workspace with its own target dir, whatever the caller's
+    // The firmware is its own workspace with one target dir per board, whatever the caller's
     // CARGO_TARGET_DIR says: `elf()` looks for the image there.
-    c.env("CARGO_TARGET_DIR", root().join("firmware/target"));
+    c.env("CARGO_TARGET_DIR", target_dir(board));
     c
 }
 
 /// Builds the firmware for `board` (release).
 pub fn build(board: Board) -> Result<()> {
-    let mut c = firmware_cargo();
+    ensure_target()?;
+    let mut c = firmware_cargo(board);
     c.args(["build", "--release"]).args(board.cargo_args());
     run(&format!("firmware build ({})", board.name()), c)
 }
 
-/// Prints flash and RAM use of the last build (`arm-none-eabi-size -A`, summed per region).
+/// Prints flash and RAM use of the last build (`arm-none-eabi-size -A`, summed per region);
+/// fails when a region overflows.
 pub fn size(board: Board) -> Result<()> {
     let out = Command::new("arm-none-eabi-size")
         .arg("-A")
@@ -93,6 +168,8 @@ pub fn size(board: Board) -> Result<()> {
         bail!("arm-none-eabi-size failed");
     }
     let text = String::from_utf8_lossy(&out.stdout);
+    let regions = board.regions();
+    let mut used = vec![0u64; regions.len()];
     let (mut flash, mut ram, mut other) = (0u64, 0u64, Vec::new());
     for line in text.lines() {
         let f: Vec<&str> = line.split_whitespace().collect();
@@ -103,39 +180,71 @@ pub fn size(board: Board) -> Result<()> {
         if size == 0 || addr == 0 && name.starts_with(".debug") {
             continue;
         }
-        match (board, name) {
-            (_, ".vector_table" | ".text" | ".rodata") => flash += size,
-            (_, ".data") => {
+        if let Some(i) = regions.iter().position(|r| r.0.contains(&name)) {
+            used[i] += size;
+            continue;
+        }
+        match name {
+            ".vector_table" | ".text" | ".rodata" => flash += size,
+            ".data" => {
                 flash += size;
                 ram += size;
             }
-            (_, ".bss" | ".uninit" | ".stack") => ram += size,
-            (_, n) if n.starts_with(".defmt") => flash += size,
+            ".bss" | ".uninit" | ".stack" => ram += size,
+            n if n.starts_with(".defmt") => flash += size,
             _ if addr > 0 => other.push(format!("{name} {size} B at {addr:#x}")),
             _ => {}
         }
     }
-    let (flash_total, ram_total) = match board {
-        Board::Qemu => (4 * 1024 * 1024, 4 * 1024 * 1024),
-        Board::Stm32f405 => (1024 * 1024, 128 * 1024),
-    };
-    eprintln!(
-        "xtask: {} firmware: flash {flash} B of {flash_total} ({:.1} %), RAM (static, without stack) {ram} B of {ram_total} ({:.1} %){}{}",
+    let (flash_total, ram_total) = board.flash_ram();
+    let pct = |a: u64, b: u64| 100.0 * a as f64 / b as f64;
+    let mut line = format!(
+        "xtask: {} firmware: flash {flash} B of {flash_total} ({:.1} %), RAM (static, without \
+         stack) {ram} B of {ram_total} ({:.1} %)",
         board.name(),
-        100.0 * flash as f64 / flash_total as f64,
-        100.0 * ram as f64 / ram_total as f64,
-        if other.is_empty() { "" } else { "; other: " },
-        other.join(", ")
+        pct(flash, flash_total),
+        pct(ram, ram_total)
     );
+    for ((_, total, what), u) in regions.iter().zip(&used) {
+        line.push_str(&format!(
+            "; {what} {u} B of {total} ({:.1} %)",
+            pct(*u, *total)
+        ));
+    }
+    if !other.is_empty() {
+        line.push_str("; other: ");
+        line.push_str(&other.join(", "));
+    }
+    eprintln!("{line}");
+    if flash > flash_total || ram + MIN_STACK > ram_total {
+        bail!(
+            "{} firmware does not fit: flash {flash} of {flash_total} B, RAM {ram} + {MIN_STACK} \
+             B stack of {ram_total} B",
+            board.name()
+        );
+    }
+    for ((_, total, what), u) in regions.iter().zip(&used) {
+        if u > total {
+            bail!(
+                "{} firmware: {what} overflows ({u} of {total} B)",
+                board.name()
+            );
+        }
+    }
     Ok(())
 }
 
-/// `cargo xtask firmware [--board qemu|stm32f405]`: build and size (both boards by default).
+/// Stack the size check keeps free in main RAM (interrupt handlers and the executors run on
+/// it; the tasks live in statics).
+const MIN_STACK: u64 = 8 * 1024;
+
+/// `cargo xtask firmware [--board qemu|stm32f405|stm32h743]`: build and size (every board by
+/// default).
 pub fn firmware(args: &[String]) -> Result<()> {
     let boards = match args {
-        [] => vec![Board::Qemu, Board::Stm32f405],
+        [] => BOARDS.to_vec(),
         [flag, b] if flag == "--board" => vec![Board::parse(b)?],
-        _ => bail!("usage: cargo xtask firmware [--board qemu|stm32f405]"),
+        _ => bail!("usage: cargo xtask firmware [--board qemu|stm32f405|stm32h743]"),
     };
     for b in boards {
         build(b)?;
@@ -144,14 +253,23 @@ pub fn firmware(args: &[String]) -> Result<()> {
     Ok(())
 }
 
-/// `cargo xtask flash`: builds the STM32F405 firmware and runs it on a board through probe-rs
-/// (defmt logs over RTT stream to the terminal until Ctrl-C).
+/// `cargo xtask flash [--board stm32f405|stm32h743]` (default stm32f405): builds the board's
+/// firmware and runs it on the board through probe-rs (defmt logs over RTT stream to the
+/// terminal until Ctrl-C).
 pub fn flash(args: &[String]) -> Result<()> {
-    if !args.is_empty() {
-        bail!("usage: cargo xtask flash");
-    }
-    build(Board::Stm32f405)?;
-    size(Board::Stm32f405)?;
+    let board = match args {
+        [] => Board::Stm32f405,
+        [flag, b] if flag == "--board" => Board::parse(b)?,
+        _ => bail!("usage: cargo xtask flash [--board stm32f405|stm32h743]"),
+    };
+    let Some(chip) = board.chip() else {
+        bail!(
+            "the {} board runs in QEMU: use `cargo xtask qemu`",
+            board.name()
+        );
+    };
+    build(board)?;
+    size(board)?;
     let probe = Command::new("probe-rs").arg("--version").output();
     if probe.map(|o| !o.status.success()).unwrap_or(true) {
         bail!(
@@ -159,9 +277,8 @@ pub fn flash(args: &[String]) -> Result<()> {
         );
     }
     let mut c = Command::new("probe-rs");
-    c.args(["run", "--chip", "STM32F405RGTx"])
-        .arg(elf(Board::Stm32f405));
-    run("probe-rs run --chip STM32F405RGTx", c)
+    c.args(["run", "--chip", chip]).arg(elf(board));
+    run(&format!("probe-rs run --chip {chip}"), c)
 }
 
 /// Link rate of a paced QEMU run, Mbit/s: a fast SPI link (4 MB/s, 1 M AER events/s).
@@ -192,11 +309,13 @@ pub struct QemuArgs {
     pub work: Option<PathBuf>,
     /// Dense window `X0:Y0:W:H` (firmware only; `host-sim run` has no such option).
     pub window: Option<String>,
+    /// Put a configuration frame (camera, layout, rate) at the start of the stream.
+    pub send_config: bool,
 }
 
 const QEMU_USAGE: &str = "usage: cargo xtask qemu INPUT --out yaw.csv [--layout dense|paper-boxes] [--stride N] \
 [--focal-px F] [--cx X] [--cy Y] [--width W --height H] [--rate-hz 1000] [--via spi|file] [--live] [--paced] \
-[--link-mbit 32] [--icount-shift 0..3] [--work DIR] [--window X0:Y0:W:H]";
+[--link-mbit 32] [--icount-shift 0..3] [--work DIR] [--window X0:Y0:W:H] [--send-config]";
 
 impl QemuArgs {
     pub fn parse(args: &[String]) -> Result<Self> {
@@ -249,6 +368,7 @@ impl QemuArgs {
                 }
                 "--work" => a.work = Some(PathBuf::from(val()?)),
                 "--window" => a.window = Some(val()?),
+                "--send-config" => a.send_config = true,
                 s if s.starts_with("--") => bail!("unknown option {s}\n{QEMU_USAGE}"),
                 _ if input.is_none() => input = Some(PathBuf::from(k)),
                 _ => bail!("unexpected argument {k}\n{QEMU_USAGE}"),
@@ -353,6 +473,19 @@ fn prepare_stream(a: &QemuArgs, stream: &Path) -> Result<StreamInfo> {
     if a.paced {
         c.arg("--schedule")
             .arg(stream.with_file_name("schedule.bin"));
+    }
+    if a.send_config {
+        if a.paced {
+            bail!("--send-config and --paced: the arrival schedule has no entry for the configuration frame");
+        }
+        let layout = match (&a.window, a.layout.as_deref()) {
+            (Some(w), _) => w.clone(),
+            (None, Some(l)) => l.to_string(),
+            (None, None) => "dense".to_string(),
+        };
+        c.args(["--config", &layout])
+            .args(["--config-stride", &a.stride.unwrap_or(2).to_string()])
+            .args(["--config-period-us", &(1_000_000 / a.rate_hz).to_string()]);
     }
     if let Some(f) = a.focal_px {
         c.arg("--focal-px").arg(f.to_string());
@@ -583,15 +716,17 @@ fn run_with_timeout(mut cmd: Command, limit: Duration) -> Result<Option<i32>> {
     }
 }
 
-/// The firmware part of `cargo xtask test`: fmt, clippy and build of both boards, then a
-/// short QEMU run that must match `host-sim run` bit for bit, and a corrupted stream that must
-/// be survived with the bad frames counted.
+/// The firmware part of `cargo xtask test`: fmt, clippy, build and size check of every board,
+/// the no-panic link check, then a short QEMU run that must match `host-sim run` bit for bit, a
+/// corrupted stream (with a bit slip) that must be survived with the losses counted, and the
+/// live overload run.
 pub fn check() -> Result<()> {
-    let mut c = firmware_cargo();
+    ensure_target()?;
+    let mut c = firmware_cargo(Board::Qemu);
     c.args(["fmt", "--check"]);
     run("firmware fmt --check", c)?;
-    for board in [Board::Qemu, Board::Stm32f405] {
-        let mut c = firmware_cargo();
+    for board in BOARDS {
+        let mut c = firmware_cargo(board);
         c.args(["clippy", "--release"])
             .args(board.cargo_args())
             .args(["--", "-D", "warnings"]);
@@ -599,13 +734,11 @@ pub fn check() -> Result<()> {
         build(board)?;
         size(board)?;
     }
-    // The event path (AER receiver + pipeline) must link no panic: this binary's panic handler
+    // The event path (link receiver + pipeline) must link no panic: this binary's panic handler
     // calls an undefined symbol (see firmware/src/bin/no-panic-check.rs).
-    let mut c = firmware_cargo();
+    let mut c = firmware_cargo(Board::Qemu);
     c.args(["build", "--release", "--bin", "no-panic-check"]);
     run("firmware no-panic-check (the event path links no panic)", c)?;
-    // The QEMU ELF is the last one built for board-qemu: rebuild it (cheap) after the F405.
-    build(Board::Qemu)?;
     qemu_smoke()
 }
 
@@ -679,6 +812,9 @@ fn qemu_smoke() -> Result<()> {
         .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
         .collect();
     bytes.splice(n / 3..n / 3, garbage);
+    // A spurious SCK edge: one bit too many, every later byte shifted (the receiver must
+    // realign at the next frame, not lose the rest of the stream).
+    let bytes = insert_bit(&bytes, (2 * n / 3) * 8 + 3, true);
     let bad_stream = work.join("corrupted.aer");
     std::fs::write(&bad_stream, &bytes).context("cannot write corrupted.aer")?;
     let (w, h) = (346u16, 260u16);
@@ -695,22 +831,47 @@ fn qemu_smoke() -> Result<()> {
     let report = qemu_run(&b)?;
     let line = report.counters();
     eprintln!("xtask: qemu corrupted stream: {line}");
-    // What the host's frame decoder finds in the same bytes: the firmware must process every
-    // intact frame and count the same bad and missing ones.
-    let mut dec = core_nostd::aer::frame::FrameDecoder::new();
-    dec.push(&bytes, |_| {});
-    dec.finish(|_| {});
-    let want = dec.stats();
-    if want.bad == 0 || want.dropped == 0 {
-        bail!("qemu corrupted stream: the corruption broke no frame ({want:?})");
+    // What the host's link receiver (the firmware's own input code) finds in the same bytes:
+    // the firmware must process every intact frame and count the same bad and missing ones.
+    let mut rx = core_nostd::aer::link::LinkReceiver::new();
+    let mut rest = &bytes[..];
+    while !rest.is_empty() {
+        let n = rx.feed(rest);
+        rest = &rest[n..];
+        while rx.next_frame().is_some() {}
     }
-    for (k, v) in [
-        ("frames_ok", want.ok),
-        ("frames_bad", want.bad),
-        ("frames_dropped", want.dropped),
+    rx.end_of_stream();
+    while rx.next_frame().is_some() {}
+    let want = rx.frame_stats();
+    let slips = rx.stats().bit_slips;
+    if want.bad == 0 || want.dropped == 0 || slips == 0 {
+        bail!("qemu corrupted stream: the corruption broke no frame ({want:?}, {slips} bit slips)");
+    }
+    // Every frame but those the corruption hit: 7 flips, a cut, garbage, one bit slip.
+    let mut clean = core_nostd::aer::frame::FrameDecoder::new();
+    clean.push(
+        &std::fs::read(work.join("run/events.aer")).context("cannot read the stream")?,
+        |_| {},
+    );
+    clean.finish(|_| {});
+    let sent = clean.stats().ok;
+    if want.ok + 20 < sent {
+        bail!(
+            "qemu corrupted stream: only {} of {sent} frames survive the corruption",
+            want.ok
+        );
+    }
+    for (k, v, l) in [
+        ("frames_ok", want.ok, line),
+        ("frames_bad", want.bad, line),
+        ("frames_dropped", want.dropped, line),
+        ("bit_slips", slips, report.details()),
     ] {
-        if counter(line, k) != Some(v) {
-            bail!("qemu corrupted stream: expected {k}={v} (host frame decoder): {line}");
+        if counter(l, k) != Some(v) {
+            bail!(
+                "qemu corrupted stream: expected {k}={v} (host link receiver): {}",
+                report.summary
+            );
         }
     }
     // The yaw samples after each loss carry INPUT_ERRORS; the others do not.
@@ -719,13 +880,165 @@ fn qemu_smoke() -> Result<()> {
         bail!("qemu corrupted stream: no yaw sample flagged INPUT_ERRORS");
     }
     eprintln!(
-        "xtask: corrupted stream: {} intact frames processed, {} bad, {} missing, {flagged} yaw \
-         samples flagged INPUT_ERRORS",
+        "xtask: corrupted stream: {} of {sent} frames processed, {} bad, {} missing, {slips} bit \
+         slip(s) realigned, {flagged} yaw samples flagged INPUT_ERRORS",
         want.ok, want.bad, want.dropped
     );
+    qemu_camera_change(&work, &rec)?;
     qemu_overload(&work)?;
     eprintln!("xtask: qemu checks passed");
     Ok(())
+}
+
+/// `t_s,yaw_rate_rad_s,flags` rows as (time, the rest of the line).
+fn csv_rows(path: &Path) -> Result<Vec<(f64, String)>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    text.lines()
+        .skip(1)
+        .map(|l| {
+            let (t, rest) = l.split_once(',').context("not a CSV row")?;
+            Ok((t.parse::<f64>().context("bad time")?, rest.to_string()))
+        })
+        .collect()
+}
+
+/// Runs `host-sim aer-stream REC --config LAYOUT` into `out`; returns the stream's time origin.
+fn aer_stream_with_config(rec: &Path, layout: &str, out: &Path) -> Result<u64> {
+    let mut c = host_sim();
+    c.arg("aer-stream")
+        .arg(rec)
+        .arg("--out")
+        .arg(out)
+        .args(["--config", layout]);
+    let o = c.output().context("cannot run host-sim")?;
+    if !o.status.success() {
+        bail!(
+            "host-sim aer-stream --config failed: {}",
+            String::from_utf8_lossy(&o.stderr).trim()
+        );
+    }
+    let line = String::from_utf8_lossy(&o.stdout).to_string();
+    counter(&line, "t0_us").with_context(|| format!("host-sim aer-stream printed no t0_us: {line}"))
+}
+
+/// The camera changes mid-stream: a DAVIS346 recording (paper-boxes) is followed by one from a
+/// DAVIS240C with another lens (dense), each stream starting with its configuration frame. The
+/// firmware, started with the first camera's settings, must switch at the second frame without
+/// a restart: its output must be `host-sim run` of the first recording followed by `host-sim
+/// run` of the second (each on its own clock), the yaw sequence unbroken.
+fn qemu_camera_change(work: &Path, rec_a: &Path) -> Result<()> {
+    let rec_b = work.join("rec-davis240");
+    let mut c = host_sim();
+    c.args([
+        "synth",
+        "--preset",
+        "davis240",
+        "--duration",
+        "0.5",
+        "--seed",
+        "8",
+        "--out",
+    ])
+    .arg(&rec_b);
+    run("host-sim synth (DAVIS240C, 0.5 s)", c)?;
+    let (ev_a, ev_b) = (rec_a.join("events.txt"), rec_b.join("events.txt"));
+    let (sa, sb) = (work.join("camera-a.aer"), work.join("camera-b.aer"));
+    let t0_a = aer_stream_with_config(&ev_a, "paper-boxes", &sa)?;
+    let t0_b = aer_stream_with_config(&ev_b, "dense", &sb)?;
+    let mut both = std::fs::read(&sa).context("cannot read camera-a.aer")?;
+    both.extend(std::fs::read(&sb).context("cannot read camera-b.aer")?);
+    let stream = work.join("camera-change.aer");
+    std::fs::write(&stream, &both).context("cannot write camera-change.aer")?;
+    let fw_csv = work.join("qemu-camera-change.csv");
+    let a = QemuArgs {
+        input: stream,
+        out: fw_csv.clone(),
+        layout: Some("paper-boxes".into()),
+        width: Some(346),
+        height: Some(260),
+        focal_px: Some(226.0),
+        rate_hz: 1000,
+        work: Some(work.join("run-camera-change")),
+        ..Default::default()
+    };
+    let report = qemu_run(&a)?;
+    let (line, detail) = (report.counters(), report.details());
+    eprintln!("xtask: qemu camera change: {line}");
+    let mut host = Vec::new();
+    for (ev, layout, t0) in [(&ev_a, "paper-boxes", t0_a), (&ev_b, "dense", t0_b)] {
+        let csv = work.join(format!("host-camera-{layout}.csv"));
+        let mut c = host_sim();
+        c.arg("run")
+            .arg(ev)
+            .args(["--layout", layout, "--out"])
+            .arg(&csv);
+        run(
+            &format!("host-sim run --layout {layout} {}", ev.display()),
+            c,
+        )?;
+        host.extend(csv_rows(&csv)?.into_iter().map(|r| (r, t0)));
+    }
+    let fw = csv_rows(&fw_csv)?;
+    if fw.len() != host.len() {
+        bail!(
+            "qemu camera change: {} yaw samples, host-sim run gives {} ({} then the second camera)",
+            fw.len(),
+            host.len(),
+            csv_rows(&work.join("host-camera-paper-boxes.csv"))?.len()
+        );
+    }
+    // The firmware's times are on each stream's clock (t0 = 0); the host's on the recording's.
+    for (i, ((t, rest), ((ht, hrest), t0))) in fw.iter().zip(&host).enumerate() {
+        if rest != hrest || (t + *t0 as f64 * 1e-6 - ht).abs() > 2e-6 {
+            bail!("qemu camera change: sample {i} is {t},{rest}, host-sim run gives {ht},{hrest}");
+        }
+    }
+    for (k, want) in [("configs_applied", 1u64), ("configs_refused", 0)] {
+        if counter(detail, k) != Some(want) {
+            bail!("qemu camera change: expected {k}={want}: {detail}");
+        }
+    }
+    for (k, want) in [("frames_bad", 0u64), ("frames_dropped", 0)] {
+        if counter(line, k) != Some(want) {
+            bail!("qemu camera change: expected {k}={want}: {line}");
+        }
+    }
+    let yaw =
+        std::fs::read(work.join("run-camera-change/yaw.bin")).context("cannot read yaw.bin")?;
+    let (mut dec, mut seqs) = (core_nostd::aer::yaw::YawDecoder::new(), Vec::new());
+    dec.push(&yaw, |f| seqs.push(f.seq));
+    if seqs.windows(2).any(|w| w[1] != w[0].wrapping_add(1)) {
+        bail!("qemu camera change: the yaw sequence counter jumps");
+    }
+    eprintln!(
+        "xtask: camera change: {} samples identical to host-sim run of the two recordings, \
+         yaw sequence unbroken over the switch",
+        fw.len()
+    );
+    Ok(())
+}
+
+/// `bytes` as an SPI slave receives them when one extra bit (`value`) is clocked in before bit
+/// `at` (MSB first): every later byte is shifted by one bit; the last, incomplete byte is lost.
+fn insert_bit(bytes: &[u8], at: usize, value: bool) -> Vec<u8> {
+    let bit = |i: usize| bytes.get(i / 8).is_some_and(|b| b & (0x80 >> (i % 8)) != 0);
+    let total = bytes.len() * 8 + 1;
+    let mut out = vec![0u8; total / 8];
+    for (j, byte) in out.iter_mut().enumerate() {
+        for k in 0..8 {
+            let i = j * 8 + k;
+            let v = match i.cmp(&at) {
+                std::cmp::Ordering::Less => bit(i),
+                std::cmp::Ordering::Equal => value,
+                std::cmp::Ordering::Greater => bit(i - 1),
+            };
+            if v {
+                *byte |= 0x80 >> k;
+            }
+        }
+    }
+    out
 }
 
 /// The number `N` of a `k=N` field in a line of `key=value` fields.

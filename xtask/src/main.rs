@@ -60,10 +60,10 @@ fn print_help() {
          test    fmt, clippy, every test, the Cortex-M builds (what CI runs)\n  \
          demo    the main job on the built-in default input; results in out/\n  \
          setup   install the system packages the tools need (apt, when root)\n  \
-         firmware [--board qemu|stm32f405]   build the firmware and print its flash/RAM use\n  \
-         flash   build the STM32F405 firmware and run it through probe-rs (defmt over RTT)\n  \
+         firmware [--board qemu|stm32f405|stm32h743]   build the firmware, print its flash/RAM use\n  \
+         flash [--board stm32f405|stm32h743]   build and run on the board through probe-rs (defmt over RTT)\n  \
          qemu INPUT --out yaw.csv [options]  run a recording through the emulated firmware\n  \
-         firmware-test   only the firmware part of `test` (both boards, QEMU runs)\n  \
+         firmware-test   only the firmware part of `test` (every board, QEMU runs)\n  \
          fuzz [--seconds N] [TARGET..]      the libFuzzer targets (nightly), N s each (10)"
     );
 }
@@ -153,6 +153,7 @@ fn test() -> Result<()> {
     c.args(["test", "--workspace", "--release"]);
     c.env("CARGO_PROFILE_RELEASE_OVERFLOW_CHECKS", "true");
     run("cargo test --workspace --release", c)?;
+    firmware::ensure_target()?;
     let mut c = cargo();
     c.args([
         "build",

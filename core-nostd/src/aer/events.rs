@@ -339,6 +339,8 @@ pub struct PayloadStats {
     pub event_frames: u64,
     /// Frames of kind 2 (EVT 3.0) decoded.
     pub evt3_frames: u64,
+    /// Frames of kind 3 (configuration) passed by (they carry no events).
+    pub config_frames: u64,
     /// The EVT 3.0 decoder's own counters (invalid words, skipped words, wraps...), summed over
     /// its restarts.
     pub evt3: DecodeStats,
@@ -355,6 +357,7 @@ pub struct PayloadDecoder {
     events: u64,
     event_frames: u64,
     evt3_frames: u64,
+    config_frames: u64,
 }
 
 fn add_stats(a: &DecodeStats, b: &DecodeStats) -> DecodeStats {
@@ -380,6 +383,7 @@ impl PayloadDecoder {
             events: 0,
             event_frames: 0,
             evt3_frames: 0,
+            config_frames: 0,
         }
     }
 
@@ -403,6 +407,11 @@ impl PayloadDecoder {
                 });
                 n
             }
+            // Configuration frames carry no events; the caller reads them (`aer::config`).
+            Kind::Config => {
+                self.config_frames += 1;
+                0
+            }
         };
         self.events += u64::from(n);
         n
@@ -415,6 +424,7 @@ impl PayloadDecoder {
             events: self.events,
             event_frames: self.event_frames,
             evt3_frames: self.evt3_frames,
+            config_frames: self.config_frames,
             evt3: add_stats(&self.evt3_before, &self.evt3.stats()),
         }
     }

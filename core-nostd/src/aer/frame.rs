@@ -3,7 +3,8 @@
 //! ```text
 //! offset  size  field
 //!      0     2  sync 0xA5 0xE7
-//!      2     1  version (bits 7..4, = 1) | payload kind (bits 3..0: 1 AER events, 2 EVT 3.0 words)
+//!      2     1  version (bits 7..4, = 1) | payload kind (bits 3..0: 1 AER events, 2 EVT 3.0
+//!               words, 3 configuration)
 //!      3     1  flags: bit 0 SOURCE_OVERFLOW, bit 1 STREAM_START, bits 7..2 reserved (sent 0, ignored)
 //!      4     2  sequence counter (u16 LE, +1 per frame, wraps)
 //!      6     2  payload length in bytes (u16 LE, <= 1024; AER: 4 + 4k, EVT 3.0: even)
@@ -49,6 +50,8 @@ pub enum Kind {
     Events = 1,
     /// Raw Prophesee EVT 3.0 bytes (16-bit LE words), decoded with [`crate::evt::Evt3Decoder`].
     Evt3 = 2,
+    /// A configuration (camera, network, output rate; see [`super::config`]).
+    Config = 3,
 }
 
 impl Kind {
@@ -58,6 +61,7 @@ impl Kind {
         match n {
             1 => Some(Self::Events),
             2 => Some(Self::Evt3),
+            3 => Some(Self::Config),
             _ => None,
         }
     }
@@ -71,6 +75,7 @@ impl Kind {
         match self {
             Self::Events => len >= 4 && len.is_multiple_of(4),
             Self::Evt3 => len.is_multiple_of(2),
+            Self::Config => len >= 4 && len <= 64 && len.is_multiple_of(4),
         }
     }
 }
@@ -304,6 +309,35 @@ impl FrameDecoder {
                 on_frame(&f);
             }
         });
+    }
+
+    /// Bytes buffered and not yet handed out.
+    #[must_use]
+    pub const fn pending(&self) -> usize {
+        self.framer.pending()
+    }
+
+    /// Bytes [`FrameDecoder::feed`] takes now.
+    #[must_use]
+    pub const fn room(&self) -> usize {
+        self.framer.room()
+    }
+
+    /// Bytes still missing from a frame whose header checked (see [`Framer::need`]).
+    #[must_use]
+    pub fn need(&self) -> Option<usize> {
+        self.framer.need()
+    }
+
+    /// Whether an incomplete frame is buffered (see [`Framer::partial_frame`]).
+    #[must_use]
+    pub fn partial_frame(&self) -> bool {
+        self.framer.partial_frame()
+    }
+
+    /// Drops the buffered bytes as broken (see [`Framer::discard`]).
+    pub fn discard(&mut self) {
+        self.framer.discard();
     }
 
     /// Counters since creation.

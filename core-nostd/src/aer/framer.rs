@@ -114,6 +114,53 @@ impl<S: FrameSpec, const CAP: usize> Framer<S, CAP> {
         self.end - self.start
     }
 
+    /// Bytes [`Framer::feed`] takes now (`CAP - pending`, after moving the pending bytes to
+    /// the front of the buffer).
+    #[must_use]
+    pub const fn room(&self) -> usize {
+        CAP - self.pending()
+    }
+
+    /// Bytes still missing from the frame being collected, when the buffered bytes start with
+    /// a header that passed its check; `None` otherwise (no frame started, header incomplete
+    /// or rejected, or the frame complete).
+    #[must_use]
+    pub fn need(&self) -> Option<usize> {
+        let w = self.buf.get(self.start..self.end)?;
+        if !w.starts_with(&S::SYNC) {
+            return None;
+        }
+        match S::header(w.get(..S::HEADER)?) {
+            Header::Frame(n) if n <= CAP && n > w.len() => Some(n - w.len()),
+            _ => None,
+        }
+    }
+
+    /// Whether the buffered bytes start a frame (the sync pattern and more) that is not
+    /// complete yet. Meaningful after [`Framer::next_frame`] returned `None`.
+    #[must_use]
+    pub fn partial_frame(&self) -> bool {
+        self.buf
+            .get(self.start..self.end)
+            .is_some_and(|w| w.starts_with(&S::SYNC))
+    }
+
+    /// Drops the buffered bytes because they are known to be broken (the link lost its bit
+    /// alignment): a candidate with a valid header is counted bad (cut short), the bytes
+    /// skipped. Unlike [`Framer::next_frame_at_end`] nothing behind the candidate is rescanned.
+    pub fn discard(&mut self) {
+        let window = self.buf.get(self.start..self.end).unwrap_or_default();
+        if window.starts_with(&S::SYNC)
+            && matches!(
+                window.get(..S::HEADER).map(S::header),
+                Some(Header::Frame(_))
+            )
+        {
+            self.stats.bad_crc += 1;
+        }
+        self.clear();
+    }
+
     /// Forgets buffered bytes (counted as skipped) without touching the counters otherwise.
     pub fn clear(&mut self) {
         self.stats.skipped_bytes += self.pending() as u64;

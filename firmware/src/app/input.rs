@@ -1,9 +1,13 @@
-//! The input stage: bytes from the board's source -> checked frames -> the frame queue.
+//! The input stage: bytes and link events from the board's source -> the link receiver
+//! (bit-slip, NSS, overrun and mode-fault recovery; frame checks) -> the frame queue.
 
-use core_nostd::aer::frame::{flags, Frame, FrameDecoder, MAX_PAYLOAD};
+use core_nostd::aer::frame::{flags, Frame, MAX_PAYLOAD};
+use core_nostd::aer::link::{LinkEvent, LinkReceiver};
 use core_nostd::aer::yaw::flags as yaw_flags;
 
-use super::{raise_flags, update_stats, ByteSource, CostMeter, FrameBuf, Msg, Overload, FRAMES};
+use super::{
+    raise_flags, update_stats, ByteSource, CostMeter, FrameBuf, Msg, Overload, SourceError, FRAMES,
+};
 
 /// Bytes read from the source per call.
 const CHUNK: usize = 256;
@@ -40,9 +44,10 @@ async fn deliver(f: FrameBuf, mode: Overload) {
     }
 }
 
-/// Publishes the decoder's counters and raises INPUT_ERRORS when they grew.
-fn publish(dec: &FrameDecoder, errors_seen: &mut u64) {
-    let st = dec.stats();
+/// Publishes the receiver's counters and raises INPUT_ERRORS when frames were lost.
+fn publish(link: &LinkReceiver, errors_seen: &mut u64) {
+    let st = link.frame_stats();
+    let l = *link.stats();
     let errors = st.bad + st.dropped;
     if errors != *errors_seen {
         *errors_seen = errors;
@@ -55,47 +60,67 @@ fn publish(dec: &FrameDecoder, errors_seen: &mut u64) {
         s.frames_gap = st.dropped as u32;
         s.source_overflows = st.source_overflows as u32;
         s.skipped_bytes = st.skipped_bytes as u32;
+        s.transactions = l.transactions as u32;
+        s.cut_transactions = l.cut_transactions as u32;
+        s.bit_slips = l.bit_slips as u32;
+        s.spi_overruns = l.overruns as u32;
+        s.mode_faults = l.mode_faults as u32;
     });
+}
+
+/// Hands every frame the receiver has complete to the processing stage.
+async fn drain<M: CostMeter>(link: &mut LinkReceiver, mode: Overload, cost: &mut u64) {
+    let mut a = M::now();
+    while let Some(buf) = link.next_frame().map(|f| copy_frame(&f)) {
+        *cost += u64::from(M::ticks(a, M::now()));
+        deliver(buf, mode).await;
+        a = M::now();
+    }
+    *cost += u64::from(M::ticks(a, M::now()));
 }
 
 /// Runs the input stage until the source ends (never, on a live link); then queues
 /// [`Msg::End`]. The cost of decoding (framing, CRCs, copies; not the source's reads nor the
 /// waits for queue room) is added to `Stats::input_cost_units`.
 pub async fn run<S: ByteSource, M: CostMeter>(source: &mut S, mode: Overload) {
-    let mut dec = FrameDecoder::new();
+    let mut link = LinkReceiver::new();
     let mut chunk = [0u8; CHUNK];
     let mut errors_seen = 0u64;
     loop {
         let n = match source.read(&mut chunk).await {
             Ok(0) => break,
             Ok(n) => n,
-            Err(_) => {
-                // Bytes were lost: the framer resynchronises by itself at the next frame.
-                raise_flags(yaw_flags::INPUT_ERRORS);
-                update_stats(|s| s.source_errors += 1);
+            Err(SourceError(e)) => {
+                // The frames before the event are handed out first.
+                link.event(e);
+                if e == LinkEvent::RingOverrun {
+                    update_stats(|s| s.source_errors += 1);
+                }
+                if e != LinkEvent::EndOfTransaction {
+                    raise_flags(yaw_flags::INPUT_ERRORS);
+                }
+                let mut cost = 0u64;
+                drain::<M>(&mut link, mode, &mut cost).await;
+                update_stats(|s| s.input_cost_units += cost * u64::from(M::units_per_tick()));
+                publish(&link, &mut errors_seen);
                 continue;
             }
         };
         let mut rest = chunk.get(..n).unwrap_or_default();
         let mut cost = 0u64;
         while !rest.is_empty() {
-            let mut a = M::now();
-            let taken = dec.feed(rest);
+            let a = M::now();
+            let taken = link.feed(rest);
             rest = rest.get(taken..).unwrap_or_default();
-            while let Some(buf) = dec.next_frame().map(|f| copy_frame(&f)) {
-                cost += u64::from(M::ticks(a, M::now()));
-                deliver(buf, mode).await;
-                a = M::now();
-            }
             cost += u64::from(M::ticks(a, M::now()));
+            drain::<M>(&mut link, mode, &mut cost).await;
         }
         update_stats(|s| s.input_cost_units += cost * u64::from(M::units_per_tick()));
-        publish(&dec, &mut errors_seen);
+        publish(&link, &mut errors_seen);
     }
-    while let Some(f) = dec.next_frame_at_end() {
-        let buf = copy_frame(&f);
-        deliver(buf, mode).await;
-    }
-    publish(&dec, &mut errors_seen);
+    link.end_of_stream();
+    let mut cost = 0u64;
+    drain::<M>(&mut link, mode, &mut cost).await;
+    publish(&link, &mut errors_seen);
     FRAMES.send(Msg::End).await;
 }

@@ -18,6 +18,7 @@
 //! ([`CostMeter`]) and the executor; tasks are spawned by the board because embassy tasks
 //! cannot be generic.
 
+pub mod configured;
 pub mod input;
 pub mod process;
 pub mod processing;
@@ -26,6 +27,7 @@ use core::cell::Cell;
 use core::sync::atomic::{AtomicU8, Ordering};
 
 use core_nostd::aer::frame::{Kind, MAX_PAYLOAD};
+use core_nostd::aer::link::LinkEvent;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::CriticalSectionMutex;
 use embassy_sync::channel::Channel;
@@ -113,14 +115,28 @@ pub struct Stats {
     pub source_overflows: u32,
     /// Bytes that were not part of an intact frame.
     pub skipped_bytes: u32,
-    /// Source read errors (DMA ring overruns).
+    /// Bytes lost by the source (DMA ring overruns).
     pub source_errors: u32,
+    /// SPI transactions ended (NSS rising edges).
+    pub transactions: u32,
+    /// Transactions that ended inside a frame (NSS glitches, aborted transfers).
+    pub cut_transactions: u32,
+    /// Bit slips the receiver realigned (spurious or lost SCK edges).
+    pub bit_slips: u32,
+    /// SPI overruns (OVR).
+    pub spi_overruns: u32,
+    /// SPI mode faults (MODF).
+    pub mode_faults: u32,
     /// Frames processed.
     pub frames_processed: u32,
     /// Events processed.
     pub events: u32,
     /// EVT 3.0 words of undefined types.
     pub decoder_errors: u32,
+    /// Configuration frames that changed the running network.
+    pub configs_applied: u32,
+    /// Configuration frames refused (unknown version or values, a layout that does not fit).
+    pub configs_refused: u32,
     /// Yaw frames written.
     pub yaw_out: u32,
     /// Yaw frames the sink had no room for.
@@ -141,9 +157,16 @@ pub static STATS: CriticalSectionMutex<Cell<Stats>> = CriticalSectionMutex::new(
     source_overflows: 0,
     skipped_bytes: 0,
     source_errors: 0,
+    transactions: 0,
+    cut_transactions: 0,
+    bit_slips: 0,
+    spi_overruns: 0,
+    mode_faults: 0,
     frames_processed: 0,
     events: 0,
     decoder_errors: 0,
+    configs_applied: 0,
+    configs_refused: 0,
     yaw_out: 0,
     yaw_dropped: 0,
     cost_units: 0,
@@ -167,13 +190,15 @@ pub fn stats() -> Stats {
 /// Where the AER byte stream comes from.
 pub trait ByteSource {
     /// Fills the front of `buf` with the next bytes; `Ok(0)` means the stream ended (a live
-    /// link never ends). May wait.
+    /// link never ends); an error reports a link event at this point of the stream. May wait.
     async fn read(&mut self, buf: &mut [u8]) -> Result<usize, SourceError>;
 }
 
-/// A source lost bytes (the DMA ring was overrun); reading goes on.
-#[derive(Clone, Copy, Debug, defmt::Format)]
-pub struct SourceError;
+/// Something happened on the link at this point of the byte stream (after the bytes returned
+/// before, ahead of those returned after): the end of an SPI transaction, an overrun, a mode
+/// fault, or lost bytes (a DMA ring overrun, a stuck emulated SPI). Reading goes on.
+#[derive(Clone, Copy, Debug)]
+pub struct SourceError(pub LinkEvent);
 
 /// Where yaw frames go. Synchronous so the processing stage never waits on output: a sink
 /// without room returns `false` and the frame is counted as dropped.

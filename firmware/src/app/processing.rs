@@ -7,13 +7,16 @@
 //! the last event with the MCU clock (flag CLOCK), and the pipeline flags samples STALE once
 //! 100 ms have passed without events.
 
+use core_nostd::aer::config::StreamConfig;
 use core_nostd::aer::events::PayloadDecoder;
+use core_nostd::aer::frame::Kind;
 use core_nostd::aer::yaw::{flags, YawFrame};
 use core_nostd::layout::Layout;
 use embassy_futures::select::{select, Either};
 use embassy_time::{Duration, Instant, Timer};
 use fixed::types::I16F16;
 
+use super::configured::Exit;
 use super::process::{Processor, YawSample};
 use super::{take_flags, update_stats, CostMeter, Msg, YawSink, FRAMES};
 
@@ -56,14 +59,20 @@ impl<K: YawSink> Out<'_, K> {
     }
 }
 
-/// Runs the processing stage until [`Msg::End`] (replays) or forever (live).
+/// Runs the processing stage until [`Msg::End`] (replays) or a configuration frame that
+/// differs from `current` and that `accept`s (then the samples due up to the last event are
+/// emitted first); forever on a live link otherwise. `seq` is the yaw frames' sequence
+/// counter, carried over from and to the previous and next run.
 pub async fn run<L: Layout, K: YawSink, M: CostMeter>(
     pipeline: &mut Processor<'_, L>,
     sink: &mut K,
     clock: Clock,
-) {
+    seq: &mut u8,
+    current: &StreamConfig,
+    accept: &dyn Fn(&StreamConfig) -> bool,
+) -> Exit {
     let mut payload = PayloadDecoder::new();
-    let mut out = Out { sink, seq: 0 };
+    let mut out = Out { sink, seq: *seq };
     let mut decoder_errors = 0u64;
     // Live clock: last event time and when it was processed.
     let mut last: Option<(u32, Instant)> = None;
@@ -90,9 +99,29 @@ pub async fn run<L: Layout, K: YawSink, M: CostMeter>(
                 if let Some((t, _)) = last {
                     pipeline.poll(t, &mut |s| out.emit(s, 0));
                 }
-                return;
+                *seq = out.seq;
+                return Exit::End;
             }
         };
+        if frame.kind == Kind::Config {
+            update_stats(|st| st.frames_processed += 1);
+            match StreamConfig::parse(frame.payload()) {
+                Ok(new) if new == *current => {}
+                Ok(new) if accept(&new) => {
+                    if let Some((t, _)) = last {
+                        pipeline.poll(t, &mut |s| out.emit(s, 0));
+                    }
+                    update_stats(|st| st.configs_applied += 1);
+                    *seq = out.seq;
+                    return Exit::Reconfigure(new);
+                }
+                _ => {
+                    defmt::warn!("configuration frame refused");
+                    update_stats(|st| st.configs_refused += 1);
+                }
+            }
+            continue;
+        }
         let f = core_nostd::aer::frame::Frame {
             kind: frame.kind,
             flags: frame.flags,

@@ -1,7 +1,8 @@
 //! Link-time proof that the event path cannot panic.
 //!
-//! This binary runs the firmware's whole event path — AER bytes through the frame receiver, the
-//! events through the calibrated pipeline (network, readout, output clock), on both layouts —
+//! This binary runs the firmware's whole event path — raw SPI bytes and link events through the
+//! link receiver (bit realignment, frame checks), the payloads through the payload decoder and
+//! the configuration parser, the events through the calibrated pipeline (network, readout, output clock), on both layouts —
 //! on input read with volatile loads, so the compiler can assume nothing about it. Its panic
 //! handler calls a function that exists nowhere: if any panic (unwrap, bounds check, division
 //! by zero, explicit panic) were reachable from that path, the optimised, LTO'd binary would
@@ -13,7 +14,9 @@
 use core::panic::PanicInfo;
 use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
 
-use core_nostd::aer::events::Receiver;
+use core_nostd::aer::config::StreamConfig;
+use core_nostd::aer::events::PayloadDecoder;
+use core_nostd::aer::link::{LinkEvent, LinkReceiver};
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::{Dense, Layout, PaperBoxes};
 use core_nostd::network::Cell;
@@ -53,6 +56,14 @@ fn emit(s: YawSample) {
     }
 }
 
+/// A configuration frame's payload, as the processing stage reads it.
+fn config(payload: &[u8]) {
+    if let Ok(c) = StreamConfig::parse(payload) {
+        // SAFETY: as above.
+        unsafe { write_volatile(addr_of_mut!(SINK), u32::from(c.width) ^ c.period_us) }
+    }
+}
+
 fn run<L: Layout>(layout: L, cells: &mut [Cell]) {
     let cal = Calibration::for_units(
         U16F16::from_bits(param(0)),
@@ -67,11 +78,39 @@ fn run<L: Layout>(layout: L, cells: &mut [Cell]) {
     let Ok(mut p) = pipeline::calibrated(&KERNEL, layout, cells, cal) else {
         return;
     };
-    let mut rx = Receiver::new();
-    for _ in 0..param(4) {
+    let mut link = LinkReceiver::new();
+    let mut payload = PayloadDecoder::new();
+    for i in 0..param(4) {
         let bytes = input();
-        rx.push(&bytes, |ev| p.event(ev, &mut emit));
+        let mut rest = &bytes[..];
+        while !rest.is_empty() {
+            let n = link.feed(rest);
+            rest = rest.get(n..).unwrap_or_default();
+            while let Some(f) = link.next_frame() {
+                payload.frame(&f, |ev| p.event(ev, &mut emit));
+                config(f.payload);
+            }
+        }
+        let event = match param(i as usize % 8) % 5 {
+            0 => None,
+            1 => Some(LinkEvent::EndOfTransaction),
+            2 => Some(LinkEvent::Overrun),
+            3 => Some(LinkEvent::ModeFault),
+            _ => Some(LinkEvent::RingOverrun),
+        };
+        if let Some(e) = event {
+            link.event(e);
+            while let Some(f) = link.next_frame() {
+                payload.frame(&f, |ev| p.event(ev, &mut emit));
+                config(f.payload);
+            }
+        }
         p.poll(param(5), &mut emit);
+    }
+    link.end_of_stream();
+    while let Some(f) = link.next_frame() {
+        payload.frame(&f, |ev| p.event(ev, &mut emit));
+        config(f.payload);
     }
 }
 

@@ -1,8 +1,14 @@
 //! Board support: each board provides the byte source, the yaw sink, the cost meter, the
 //! executor, logging and the panic handler, and spawns the application's tasks.
 
-#[cfg(all(feature = "board-qemu", feature = "board-stm32f405"))]
-compile_error!("choose one board: --no-default-features --features board-stm32f405");
+#[cfg(any(
+    all(feature = "board-qemu", feature = "board-stm32f405"),
+    all(feature = "board-qemu", feature = "board-stm32h743"),
+    all(feature = "board-stm32f405", feature = "board-stm32h743"),
+))]
+compile_error!(
+    "choose one board: --no-default-features --features board-stm32f405 (or board-stm32h743)"
+);
 
 #[cfg(feature = "board-qemu")]
 mod qemu;
@@ -13,3 +19,15 @@ pub use qemu::main;
 mod stm32f405;
 #[cfg(all(feature = "board-stm32f405", not(feature = "board-qemu")))]
 pub use stm32f405::main;
+
+#[cfg(all(feature = "board-stm32h743", not(feature = "board-qemu")))]
+mod stm32h743;
+#[cfg(all(feature = "board-stm32h743", not(feature = "board-qemu")))]
+pub use stm32h743::main;
+
+/// The SPI link (NSS edges, OVR, MODF) shared by the STM32 boards.
+#[cfg(all(
+    any(feature = "board-stm32f405", feature = "board-stm32h743"),
+    not(feature = "board-qemu")
+))]
+mod stm32_link;

@@ -1,10 +1,12 @@
 //! The STM32F405RG board (Crazyflie-class and many Betaflight flight controllers), 168 MHz.
 //!
-//! - Events in: SPI1 as a **slave** (the sensor bridge is the master; SCK PA5, MOSI PA7,
-//!   MISO PA6, NSS PA4), received by DMA2 stream 0 (channel 3) in circular mode into a 4 KiB
-//!   ring in SRAM (`dma::ReadableRingBuffer` on the SPI data register; RX DMA enabled through
-//!   the PAC). The input task runs on a higher-priority interrupt executor, so processing
-//!   never delays it; a ring overrun is counted and the framer resynchronises.
+//! - Events in: SPI1 as a **slave** (the sensor bridge is the master; mode 0, MSB first; SCK
+//!   PA5, MOSI PA7, MISO PA6, NSS PA4), received by DMA2 stream 0 (channel 3) in circular mode
+//!   into a 4 KiB ring in SRAM (`dma::ReadableRingBuffer` on the SPI data register; RX DMA
+//!   enabled through the PAC). NSS edges (EXTI4), OVR and MODF (SPI1 error interrupt) re-arm
+//!   the peripheral and reach the link receiver at their place in the stream
+//!   (`super::stm32_link`). The input task runs on a higher-priority interrupt executor, so
+//!   processing never delays it.
 //! - Yaw frames out: USART1 TX (PA9) at 921 600 baud by DMA2 stream 7 (14 kB/s needed).
 //! - Logs: defmt over RTT; panics: panic-probe (reported over RTT by probe-rs).
 //! - Memory: network cells in the 64 KiB CCM (CPU only), DMA buffers and everything else in
@@ -17,15 +19,16 @@
 
 use core::mem::MaybeUninit;
 
+use core_nostd::aer::config::{LayoutChoice, StreamConfig};
 use core_nostd::aer::yaw::FRAME_BYTES;
 use core_nostd::fixed::types::U16F16;
-use core_nostd::layout::{Dense, Layout, PaperBoxes};
 use core_nostd::unit::Kernel;
 use cortex_m::peripheral::DWT;
 use defmt_rtt as _;
 use embassy_executor::{Executor, InterruptExecutor};
 use embassy_stm32::dma::{self, ReadableRingBuffer, TransferOptions};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::spi::BitOrder;
 use embassy_stm32::time::Hertz;
 use embassy_stm32::usart::{self, UartTx};
 use embassy_stm32::{bind_interrupts, pac, peripherals, spi};
@@ -35,9 +38,10 @@ use embassy_time::Timer;
 use panic_probe as _;
 use static_cell::StaticCell;
 
-use crate::app::process::{self, Cell, ProcessConfig};
-use crate::app::processing::{self, Clock};
-use crate::app::{self, ByteSource, CostMeter, Overload, SourceError, YawSink};
+use super::stm32_link::{self, SpiLink};
+use crate::app::configured::{self, CellStore};
+use crate::app::process::Cell;
+use crate::app::{self, CostMeter, Overload, YawSink};
 
 bind_interrupts!(struct Irqs {
     DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
@@ -50,26 +54,34 @@ const SENSOR: (u16, u16) = (346, 260);
 const FOCAL_PX: U16F16 = U16F16::const_from_int(226);
 /// Principal point column (px): the sensor's centre, (width - 1) / 2.
 const CX: U16F16 = U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2);
-/// Which network runs.
-const LAYOUT: BoardLayout = BoardLayout::PaperBoxes;
+/// Which network runs: the paper's boxes (800 cells), or [`DENSE_WINDOW`].
+const LAYOUT: LayoutChoice = LayoutChoice::PaperBoxes;
 /// The largest dense window that fits the CCM: 192 x 40 pixels (7680 cells of 8 bytes,
 /// 61 440 B, 15 200 units), centred.
-const DENSE_WINDOW: (u16, u16, u16, u16) = ((SENSOR.0 - 192) / 2, (SENSOR.1 - 40) / 2, 192, 40);
-/// Cells reserved in CCM (the larger of the two layouts).
+#[allow(dead_code)]
+const DENSE_WINDOW: LayoutChoice = LayoutChoice::Window {
+    x0: (SENSOR.0 - 192) / 2,
+    y0: (SENSOR.1 - 40) / 2,
+    w: 192,
+    h: 40,
+};
+/// What runs until the AER stream sends a configuration frame (`docs/wire-formats.md`).
+const DEFAULTS: StreamConfig = StreamConfig {
+    width: SENSOR.0,
+    height: SENSOR.1,
+    focal_px: FOCAL_PX,
+    cx: CX,
+    cy: U16F16::from_bits(((SENSOR.1 as u32 - 1) << 16) / 2),
+    layout: LAYOUT,
+    stride: 2,
+    period_us: 1_000,
+};
+/// Cells reserved in CCM (the largest layout that fits: the dense window).
 const MAX_CELLS: usize = 7680;
 /// SPI DMA ring size (bytes): 4 KiB is ~2 ms at 2 MB/s.
 const RING_BYTES: usize = 4096;
 /// SPI1 RX request on DMA2 stream 0 (channel 3).
 const SPI1_RX_REQUEST: u8 = 3;
-
-/// The network layouts this board can run.
-#[allow(dead_code)]
-enum BoardLayout {
-    /// The paper's two 20 x 20 boxes (800 cells).
-    PaperBoxes,
-    /// [`DENSE_WINDOW`].
-    DenseWindow,
-}
 
 #[link_section = ".ccmram"]
 static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
@@ -87,26 +99,6 @@ static EXECUTOR_LOW: StaticCell<Executor> = StaticCell::new();
 unsafe fn UART4() {
     // SAFETY: UART4 is unused as a peripheral; its interrupt only runs this executor.
     unsafe { EXECUTOR_HIGH.on_interrupt() }
-}
-
-/// The SPI DMA ring as a byte source.
-struct SpiRing {
-    ring: ReadableRingBuffer<'static, u8>,
-}
-
-impl ByteSource for SpiRing {
-    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, SourceError> {
-        loop {
-            match self.ring.read(buf) {
-                Ok((0, _)) => Timer::after_micros(200).await,
-                Ok((n, _)) => return Ok(n),
-                Err(_) => {
-                    self.ring.clear();
-                    return Err(SourceError);
-                }
-            }
-        }
-    }
 }
 
 /// Yaw frames into [`YAW_OUT`] (dropped and counted when full).
@@ -138,7 +130,7 @@ impl CostMeter for CycleMeter {
 }
 
 #[embassy_executor::task]
-async fn input_task(mut source: SpiRing) {
+async fn input_task(mut source: SpiLink) {
     app::input::run::<_, CycleMeter>(&mut source, Overload::DropFrames).await;
 }
 
@@ -174,43 +166,9 @@ async fn status_task() {
 
 #[embassy_executor::task]
 async fn process_task() {
-    match LAYOUT {
-        BoardLayout::PaperBoxes => match PaperBoxes::with_stride(SENSOR.0, SENSOR.1, 2, 1) {
-            Some(l) => run_layout(l).await,
-            None => defmt::panic!("paper boxes do not fit"),
-        },
-        BoardLayout::DenseWindow => {
-            let (x0, y0, w, h) = DENSE_WINDOW;
-            match Dense::window(SENSOR.0, SENSOR.1, x0, y0, w, h, 2) {
-                Some(l) => run_layout(l).await,
-                None => defmt::panic!("dense window does not fit"),
-            }
-        }
-    }
-}
-
-async fn run_layout<L: Layout>(layout: L) {
-    let needed = layout.cell_count().min(MAX_CELLS);
-    // SAFETY: CELLS is only touched here, once; the cells are written before the
-    // slice over them is made (CCM is not zeroed: the section is NOLOAD).
-    let cells: &'static mut [Cell] = unsafe {
-        let base = core::ptr::addr_of_mut!(CELLS).cast::<Cell>();
-        for i in 0..needed {
-            base.add(i).write(Cell::default());
-        }
-        core::slice::from_raw_parts_mut(base, needed)
-    };
-    let cfg = ProcessConfig {
-        focal_px: FOCAL_PX,
-        cx: CX,
-        period_us: 1_000,
-    };
-    let mut pipeline = match process::build(&KERNEL, layout, cells, &cfg) {
-        Ok(p) => p,
-        Err(_) => defmt::panic!("the layout needs more than {} cells", MAX_CELLS),
-    };
-    defmt::info!("processing: {} cells", needed);
-    processing::run::<_, _, CycleMeter>(&mut pipeline, &mut UartSink, Clock::Live).await;
+    // SAFETY: CELLS is used by this store only, for the rest of the program.
+    let mut cells = unsafe { CellStore::new(core::ptr::addr_of_mut!(CELLS).cast(), MAX_CELLS) };
+    configured::serve::<_, CycleMeter>(&KERNEL, DEFAULTS, &mut cells, &mut UartSink).await;
 }
 
 fn rcc_config() -> embassy_stm32::Config {
@@ -247,12 +205,14 @@ pub fn main() -> ! {
     // SPI1 slave, RX by DMA into the ring.
     let mut spi_cfg = spi::Config::default();
     spi_cfg.mode = spi::MODE_0;
+    spi_cfg.bit_order = BitOrder::MsbFirst;
     let spi = spi::Spi::new_blocking_slave(p.SPI1, p.PA5, p.PA7, p.PA6, p.PA4, spi_cfg);
     // The driver must stay alive (dropping it disables SPI1).
     static SPI: StaticCell<spi::Spi<'static, embassy_stm32::mode::Blocking, spi::mode::Slave>> =
         StaticCell::new();
     SPI.init(spi);
-    pac::SPI1.cr2().modify(|w| w.set_rxdmaen(true));
+    // RX DMA, OVR/MODF interrupt, NSS edge interrupt: above the input executor (P6).
+    stm32_link::arm(Priority::P5);
     let channel = dma::Channel::new(p.DMA2_CH0, Irqs);
     // SAFETY: RING is used by this DMA ring only, for the rest of the program; the peripheral
     // address is SPI1's data register.
@@ -278,7 +238,7 @@ pub fn main() -> ! {
     // Input on a higher-priority executor: it preempts processing.
     interrupt::UART4.set_priority(Priority::P6);
     let high = EXECUTOR_HIGH.start(interrupt::UART4);
-    match input_task(SpiRing { ring }) {
+    match input_task(SpiLink::new(ring)) {
         Ok(t) => high.spawn(t),
         Err(_) => defmt::panic!("spawn input"),
     }

@@ -6,6 +6,8 @@ use core::ffi::CStr;
 use semihosting::fs::File;
 use semihosting::io::{Read, Write};
 
+use core_nostd::aer::link::LinkEvent;
+
 use crate::app::{ByteSource, SourceError, YawSink};
 
 /// The AER stream read through semihosting (`--input file`).
@@ -29,7 +31,9 @@ impl HostFile {
 
 impl ByteSource for HostFile {
     async fn read(&mut self, buf: &mut [u8]) -> Result<usize, SourceError> {
-        self.file.read(buf).map_err(|_| SourceError)
+        self.file
+            .read(buf)
+            .map_err(|_| SourceError(LinkEvent::RingOverrun))
     }
 }
 

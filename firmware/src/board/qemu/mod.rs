@@ -29,14 +29,15 @@ pub mod time;
 use core::fmt::Write as _;
 use core::mem::MaybeUninit;
 
+use core_nostd::aer::config::{LayoutChoice, StreamConfig};
 use core_nostd::fixed::types::U16F16;
-use core_nostd::layout::{Dense, Layout, PaperBoxes};
 use core_nostd::unit::Kernel;
 use defmt_semihosting as _;
 use static_cell::StaticCell;
 
-use crate::app::process::{self, Cell, ProcessConfig};
-use crate::app::processing::{self, Clock};
+use crate::app::configured::{self, CellStore, Exit};
+use crate::app::process::Cell;
+use crate::app::processing::Clock;
 use crate::app::{self, ByteSource, CostMeter, Overload, SourceError};
 use time::SysTickMeter;
 
@@ -45,9 +46,6 @@ const MAX_CELLS: usize = 2_040_000;
 
 #[link_section = ".psram"]
 static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
-
-/// Seed of the paper-boxes placement, as `host-sim run`.
-const BOXES_SEED: u64 = PaperBoxes::DEFAULT_SEED;
 
 /// The default TDE parameters (tables computed at compile time).
 static KERNEL: Kernel = Kernel::DEFAULT;
@@ -162,19 +160,21 @@ impl Config {
         }
     }
 
-    fn dense(&self) -> Option<Dense> {
-        let (x0, y0, w, h) = self.window.unwrap_or((0, 0, self.width, self.height));
-        Dense::window(self.width, self.height, x0, y0, w, h, self.stride)
-    }
-
-    fn boxes(&self) -> Option<PaperBoxes> {
-        PaperBoxes::with_stride(self.width, self.height, self.stride, BOXES_SEED)
-    }
-
-    fn process(&self) -> ProcessConfig {
-        ProcessConfig {
+    /// The configuration the command line gives (a configuration frame in the stream can
+    /// change it).
+    fn stream(&self) -> StreamConfig {
+        StreamConfig {
+            width: self.width,
+            height: self.height,
             focal_px: U16F16::from_bits(self.focal_bits),
             cx: U16F16::from_bits(self.cx_bits),
+            cy: U16F16::from_bits(u32::from(self.height.saturating_sub(1)) << 15),
+            layout: match (self.boxes, self.window) {
+                (true, _) => LayoutChoice::PaperBoxes,
+                (false, None) => LayoutChoice::Dense,
+                (false, Some((x0, y0, w, h))) => LayoutChoice::Window { x0, y0, w, h },
+            },
+            stride: self.stride,
             period_us: self.period_us,
         }
     }
@@ -204,51 +204,37 @@ async fn input_task(source: &'static mut paced::Paced<Source>, mode: Overload) {
     app::input::run::<_, SysTickMeter>(source, mode).await;
 }
 
-#[embassy_executor::task]
-async fn main_task(cfg: Config) {
-    if cfg.boxes {
-        match cfg.boxes() {
-            Some(l) => run_layout(&cfg, l).await,
-            None => config_error("the paper boxes do not fit the sensor"),
-        }
-    } else {
-        match cfg.dense().filter(|l| l.cell_count() <= MAX_CELLS) {
-            Some(l) => run_layout(&cfg, l).await,
-            None => config_error("bad dense layout (window outside the sensor, or too many cells)"),
-        }
-    }
-}
-
 fn config_error(msg: &str) -> ! {
     defmt::error!("{}", msg);
     quit(exit::CONFIG)
 }
 
-async fn run_layout<L: Layout>(cfg: &Config, layout: L) {
-    let needed = layout.cell_count();
-    if needed > MAX_CELLS {
-        config_error("the layout has too many cells");
-    }
-    // SAFETY: CELLS is only touched here, once; the first `needed` cells are
-    // written before the slice over them is made (PSRAM is not zeroed: the section is NOLOAD).
-    let cells: &'static mut [Cell] = unsafe {
-        let base = core::ptr::addr_of_mut!(CELLS).cast::<Cell>();
-        for i in 0..needed {
-            base.add(i).write(Cell::default());
-        }
-        core::slice::from_raw_parts_mut(base, needed)
-    };
-    let mut pipeline = match process::build(&KERNEL, layout, cells, &cfg.process()) {
-        Ok(p) => p,
-        Err(_) => config_error("cannot build the network"),
-    };
+#[embassy_executor::task]
+async fn main_task(cfg: Config) {
+    // SAFETY: CELLS is used by this store only, for the rest of the program.
+    let mut cells = unsafe { CellStore::new(core::ptr::addr_of_mut!(CELLS).cast(), MAX_CELLS) };
     let mut sink = host::YawFile::create();
     let clock = if cfg.live {
         Clock::Live
     } else {
         Clock::EventTimeOnly
     };
-    processing::run::<_, _, SysTickMeter>(&mut pipeline, &mut sink, clock).await;
+    let mut stream = cfg.stream();
+    let mut seq = 0u8;
+    loop {
+        let run = configured::run::<_, SysTickMeter>(
+            &KERNEL, &stream, &mut cells, &mut sink, clock, &mut seq,
+        );
+        match run.await {
+            Ok(Exit::End) => break,
+            Ok(Exit::Reconfigure(next)) => stream = next,
+            Err(e) => {
+                defmt::error!("cannot run the configuration: {}", e);
+                config_error("bad layout (window outside the sensor, or too many cells)")
+            }
+        }
+    }
+    let needed = configured::cells_needed(&stream).unwrap_or(0);
     sink.flush();
     let s = app::stats();
     let per_event = if s.events == 0 {
@@ -264,8 +250,10 @@ async fn run_layout<L: Layout>(cfg: &Config, layout: L) {
         line,
         "events={} frames_ok={} frames_bad={} frames_dropped={} instructions_per_event={}\n\
          detail: bytes={} frames_received={} frames_gap={} frames_overflow={} source_overflows={} \
-         skipped_bytes={} source_errors={} decoder_errors={} yaw_frames={} yaw_dropped={} \
-         yaw_write_errors={} cells={} {}={} input_{}_per_byte={}.{:02} mcu_time_us={}\n",
+         skipped_bytes={} bit_slips={} configs_applied={} configs_refused={} source_errors={} \
+         decoder_errors={} yaw_frames={} \
+         yaw_dropped={} yaw_write_errors={} cells={} {}={} input_{}_per_byte={}.{:02} \
+         mcu_time_us={}\n",
         s.events,
         s.frames_processed,
         s.frames_bad,
@@ -277,6 +265,9 @@ async fn run_layout<L: Layout>(cfg: &Config, layout: L) {
         s.frames_overflow,
         s.source_overflows,
         s.skipped_bytes,
+        s.bit_slips,
+        s.configs_applied,
+        s.configs_refused,
         s.source_errors,
         s.decoder_errors,
         s.yaw_out,

@@ -8,6 +8,8 @@
 
 use core::ptr::{read_volatile, write_volatile};
 
+use core_nostd::aer::link::LinkEvent;
+
 use crate::app::{ByteSource, SourceError};
 
 const BASE: usize = 0x4002_7000;
@@ -74,7 +76,7 @@ impl SpiFlash {
             } else {
                 idle += 1;
                 if idle > STUCK {
-                    return Err(SourceError);
+                    return Err(SourceError(LinkEvent::RingOverrun));
                 }
             }
         }

@@ -1,0 +1,133 @@
+//! The configuration frame: every field survives the wire, other versions and bad values are
+//! refused, a corrupted frame never reaches the parser, and payload decoding passes it by.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+use core_nostd::aer::config::{ConfigError, LayoutChoice, StreamConfig, CONFIG_BYTES};
+use core_nostd::aer::events::PayloadDecoder;
+use core_nostd::aer::frame::{FrameDecoder, Kind, MAX_FRAME};
+use core_nostd::fixed::types::U16F16;
+
+fn davis346(layout: LayoutChoice) -> StreamConfig {
+    StreamConfig {
+        width: 346,
+        height: 260,
+        focal_px: U16F16::from_num(226.5),
+        cx: U16F16::from_num(172.25),
+        cy: U16F16::from_num(129.75),
+        layout,
+        stride: 2,
+        period_us: 1_000,
+    }
+}
+
+fn wire(cfg: &StreamConfig, seq: u16) -> Vec<u8> {
+    let mut buf = [0u8; MAX_FRAME];
+    let n = cfg.encode(0, seq, &mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+#[test]
+fn every_field_survives_the_wire() {
+    let layouts = [
+        LayoutChoice::Dense,
+        LayoutChoice::PaperBoxes,
+        LayoutChoice::Window {
+            x0: 77,
+            y0: 110,
+            w: 192,
+            h: 40,
+        },
+    ];
+    for (i, layout) in layouts.into_iter().enumerate() {
+        let cfg = davis346(layout);
+        let bytes = wire(&cfg, i as u16);
+        assert_eq!(bytes.len(), 14 + CONFIG_BYTES);
+        let mut dec = FrameDecoder::new();
+        let mut got = Vec::new();
+        dec.push(&bytes, |f| {
+            assert_eq!(f.kind, Kind::Config);
+            got.push(StreamConfig::parse(f.payload));
+        });
+        assert_eq!(got, vec![Ok(cfg)]);
+    }
+    // Another camera: a DAVIS240 with its own lens and a 500 Hz output.
+    let other = StreamConfig {
+        width: 240,
+        height: 180,
+        focal_px: U16F16::from_num(199.1),
+        cx: U16F16::from_num(120),
+        cy: U16F16::from_num(90),
+        layout: LayoutChoice::Dense,
+        stride: 3,
+        period_us: 2_000,
+    };
+    assert_eq!(StreamConfig::parse(&other.payload()), Ok(other));
+}
+
+#[test]
+fn unknown_versions_readouts_layouts_and_bad_values_are_refused() {
+    let good = davis346(LayoutChoice::Dense).payload();
+    let with = |at: usize, v: &[u8]| {
+        let mut p = good;
+        p[at..at + v.len()].copy_from_slice(v);
+        StreamConfig::parse(&p)
+    };
+    assert_eq!(with(0, &[2]), Err(ConfigError::Version(2)));
+    assert_eq!(with(0, &[0]), Err(ConfigError::Version(0)));
+    assert_eq!(with(1, &[1]), Err(ConfigError::Readout(1)));
+    assert_eq!(with(2, &[3]), Err(ConfigError::Layout(3)));
+    assert_eq!(
+        StreamConfig::parse(&good[..32]),
+        Err(ConfigError::Length(32))
+    );
+    assert_eq!(StreamConfig::parse(&[]), Err(ConfigError::Version(0)));
+    for (at, v) in [
+        (4, 0u16.to_le_bytes()),    // width 0
+        (4, 2049u16.to_le_bytes()), // wider than the AER format
+        (6, 0u16.to_le_bytes()),    // height 0
+        (8, 0u16.to_le_bytes()),    // stride 0
+        (8, 346u16.to_le_bytes()),  // stride >= width
+    ] {
+        assert_eq!(with(at, &v), Err(ConfigError::Value), "field at {at}");
+    }
+    assert_eq!(with(12, &0u32.to_le_bytes()), Err(ConfigError::Value)); // focal length 0
+    assert_eq!(with(32, &0u32.to_le_bytes()), Err(ConfigError::Value)); // period 0
+    let window = |x0: u16, y0: u16, w: u16, h: u16| {
+        StreamConfig::parse(&davis346(LayoutChoice::Window { x0, y0, w, h }).payload())
+    };
+    assert!(window(0, 0, 346, 260).is_ok());
+    assert_eq!(window(1, 0, 346, 260), Err(ConfigError::Value));
+    assert_eq!(window(0, 200, 346, 61), Err(ConfigError::Value));
+    assert_eq!(window(0, 0, 2, 10), Err(ConfigError::Value)); // not wider than the stride
+    assert_eq!(window(0, 0, 100, 0), Err(ConfigError::Value));
+}
+
+#[test]
+fn a_corrupted_configuration_never_reaches_the_parser() {
+    let bytes = wire(&davis346(LayoutChoice::PaperBoxes), 9);
+    for i in 0..bytes.len() {
+        for bit in [0x01u8, 0x80] {
+            let mut b = bytes.clone();
+            b[i] ^= bit;
+            let mut dec = FrameDecoder::new();
+            let mut n = 0;
+            dec.push(&b, |_| n += 1);
+            dec.finish(|_| n += 1);
+            assert_eq!(n, 0, "flip at byte {i}");
+        }
+    }
+}
+
+#[test]
+fn payload_decoding_passes_configurations_by() {
+    let bytes = wire(&davis346(LayoutChoice::Dense), 0);
+    let mut dec = FrameDecoder::new();
+    let mut payload = PayloadDecoder::new();
+    let mut events = 0;
+    dec.push(&bytes, |f| {
+        events += payload.frame(f, |_| {});
+    });
+    assert_eq!(events, 0);
+    let st = payload.stats();
+    assert_eq!((st.config_frames, st.event_frames, st.events), (1, 0, 0));
+}

@@ -1,0 +1,280 @@
+//! The STM32H743VI board (H743 flight controllers such as the Matek H743 and Kakute H7
+//! class), 480 MHz Cortex-M7.
+//!
+//! - Events in: SPI1 as a **slave**, receive only (the sensor bridge is the master; mode 0,
+//!   MSB first; SCK PA5, MOSI PA7, NSS PA4; MISO PA6 reserved), received by DMA1 stream 0
+//!   (DMAMUX request SPI1_RX) in circular mode into a 4 KiB ring in SRAM1. NSS edges (EXTI4),
+//!   OVR and MODF re-arm the peripheral and reach the link receiver at their place in the
+//!   stream (`super::stm32_link`). The input task runs on a higher-priority interrupt
+//!   executor, so processing never delays it.
+//! - Yaw frames out: USART1 TX (PA9) at 921 600 baud by DMA1 stream 1 (14 kB/s needed).
+//! - Logs: defmt over RTT; panics: panic-probe (reported over RTT by probe-rs).
+//! - Memory (`boards/stm32h743/memory.x`): stack and statics in the 128 KiB DTCM (CPU only);
+//!   the network cells fill the 512 KiB AXI SRAM; the DMA buffers sit in SRAM1 (DMA1 cannot
+//!   reach the DTCM). The whole 346 x 260 dense network needs 89 960 cells x 8 B = 719 680 B
+//!   in one piece, more than the largest SRAM block, so the board runs the largest dense
+//!   window that fits the AXI SRAM: 346 x 189 (all columns, 189 of 260 rows, centred).
+//! - Caches: the instruction cache is on; the data cache stays off, because the DMA buffers
+//!   would need cache maintenance or an MPU region (cells in AXI SRAM run uncached).
+//!
+//! Flash and run: `cargo xtask flash --board stm32h743`, or `cargo h743-run` in `firmware/`
+//! (both use `probe-rs run --chip STM32H743VITx`; install with
+//! `cargo install probe-rs-tools --locked`).
+
+use core::mem::MaybeUninit;
+
+use core_nostd::aer::config::{LayoutChoice, StreamConfig};
+use core_nostd::aer::yaw::FRAME_BYTES;
+use core_nostd::fixed::types::U16F16;
+use core_nostd::unit::Kernel;
+use cortex_m::peripheral::DWT;
+use defmt_rtt as _;
+use embassy_executor::{Executor, InterruptExecutor};
+use embassy_stm32::dma::{self, ReadableRingBuffer, TransferOptions};
+use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::spi::{BitOrder, RxDma};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::usart::{self, UartTx};
+use embassy_stm32::{bind_interrupts, pac, peripherals, spi};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_time::Timer;
+use panic_probe as _;
+use static_cell::StaticCell;
+
+use super::stm32_link::{self, SpiLink};
+use crate::app::configured::{self, CellStore};
+use crate::app::process::Cell;
+use crate::app::{self, CostMeter, Overload, YawSink};
+
+bind_interrupts!(struct Irqs {
+    DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+    DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
+});
+
+/// Sensor: DAVIS346, 346 x 260 px, f = 226 px.
+const SENSOR: (u16, u16) = (346, 260);
+/// Focal length (px), U16F16.
+const FOCAL_PX: U16F16 = U16F16::const_from_int(226);
+/// Principal point column (px): the sensor's centre, (width - 1) / 2.
+const CX: U16F16 = U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2);
+/// Rows of the dense window: as many full sensor rows as the AXI SRAM holds.
+const WINDOW_ROWS: u16 = (MAX_CELLS / SENSOR.0 as usize) as u16;
+/// Which network runs: the largest dense window that fits the AXI SRAM, all 346 columns by
+/// 189 rows, centred (65 394 cells of 8 bytes, 523 152 B, 130 032 units); or
+/// `LayoutChoice::PaperBoxes`.
+const LAYOUT: LayoutChoice = LayoutChoice::Window {
+    x0: 0,
+    y0: (SENSOR.1 - WINDOW_ROWS) / 2,
+    w: SENSOR.0,
+    h: WINDOW_ROWS,
+};
+/// What runs until the AER stream sends a configuration frame (`docs/wire-formats.md`).
+const DEFAULTS: StreamConfig = StreamConfig {
+    width: SENSOR.0,
+    height: SENSOR.1,
+    focal_px: FOCAL_PX,
+    cx: CX,
+    cy: U16F16::from_bits(((SENSOR.1 as u32 - 1) << 16) / 2),
+    layout: LAYOUT,
+    stride: 2,
+    period_us: 1_000,
+};
+/// Cells the AXI SRAM holds (512 KiB of 8-byte cells).
+const MAX_CELLS: usize = 512 * 1024 / core::mem::size_of::<Cell>();
+/// SPI DMA ring size (bytes): 4 KiB is ~1 ms at 4 MB/s.
+const RING_BYTES: usize = 4096;
+/// Yaw frames per UART DMA transfer, at most.
+const TX_FRAMES: usize = 16;
+
+#[link_section = ".axisram"]
+static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
+// DMA buffers: in SRAM1, which DMA1 reaches (it cannot reach the DTCM). Not loaded (NOLOAD):
+// any bytes are valid, and DMA or the CPU writes them before they are read.
+#[link_section = ".sram1"]
+static mut RING: [u8; RING_BYTES] = [0; RING_BYTES];
+#[link_section = ".sram1"]
+static mut TX_BUF: [u8; FRAME_BYTES * TX_FRAMES] = [0; FRAME_BYTES * TX_FRAMES];
+
+static KERNEL: Kernel = Kernel::DEFAULT;
+
+/// Yaw frames waiting for the USART.
+static YAW_OUT: Channel<CriticalSectionRawMutex, [u8; FRAME_BYTES], 64> = Channel::new();
+
+static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
+static EXECUTOR_LOW: StaticCell<Executor> = StaticCell::new();
+
+#[embassy_stm32::interrupt]
+unsafe fn UART4() {
+    // SAFETY: UART4 is unused as a peripheral; its interrupt only runs this executor.
+    unsafe { EXECUTOR_HIGH.on_interrupt() }
+}
+
+/// Yaw frames into [`YAW_OUT`] (dropped and counted when full).
+struct UartSink;
+
+impl YawSink for UartSink {
+    fn write(&mut self, frame: &[u8; FRAME_BYTES]) -> bool {
+        YAW_OUT.try_send(*frame).is_ok()
+    }
+}
+
+/// Cycles of the DWT cycle counter.
+struct CycleMeter;
+
+impl CostMeter for CycleMeter {
+    const UNIT: &'static str = "cycles";
+
+    fn units_per_tick() -> u32 {
+        1
+    }
+
+    fn now() -> u32 {
+        DWT::cycle_count()
+    }
+
+    fn ticks(earlier: u32, later: u32) -> u32 {
+        later.wrapping_sub(earlier)
+    }
+}
+
+#[embassy_executor::task]
+async fn input_task(mut source: SpiLink) {
+    app::input::run::<_, CycleMeter>(&mut source, Overload::DropFrames).await;
+}
+
+#[embassy_executor::task]
+async fn output_task(mut tx: UartTx<'static, embassy_stm32::mode::Async>) {
+    // SAFETY: TX_BUF is used by this task only, for the rest of the program.
+    let buf: &'static mut [u8; FRAME_BYTES * TX_FRAMES] =
+        unsafe { &mut *core::ptr::addr_of_mut!(TX_BUF) };
+    loop {
+        let first = YAW_OUT.receive().await;
+        let mut n = 0;
+        for (dst, src) in buf
+            .chunks_exact_mut(FRAME_BYTES)
+            .zip(core::iter::once(first).chain(core::iter::from_fn(|| YAW_OUT.try_receive().ok())))
+        {
+            dst.copy_from_slice(&src);
+            n += FRAME_BYTES;
+        }
+        if tx.write(buf.get(..n).unwrap_or_default()).await.is_err() {
+            defmt::warn!("usart write failed");
+        }
+    }
+}
+
+/// Logs the counters once a second.
+#[embassy_executor::task]
+async fn status_task() {
+    loop {
+        Timer::after_secs(1).await;
+        let s = app::stats();
+        let per_event = s.cost_units / u64::from(s.events.max(1));
+        defmt::info!("{} ({}/event: {})", s, CycleMeter::UNIT, per_event);
+    }
+}
+
+#[embassy_executor::task]
+async fn process_task() {
+    // SAFETY: CELLS is used by this store only, for the rest of the program.
+    let mut cells = unsafe { CellStore::new(core::ptr::addr_of_mut!(CELLS).cast(), MAX_CELLS) };
+    configured::serve::<_, CycleMeter>(&KERNEL, DEFAULTS, &mut cells, &mut UartSink).await;
+}
+
+fn rcc_config() -> embassy_stm32::Config {
+    use embassy_stm32::rcc::*;
+    let mut config = embassy_stm32::Config::default();
+    config.rcc.hse = Some(Hse {
+        freq: Hertz(8_000_000),
+        mode: HseMode::Oscillator,
+    });
+    config.rcc.pll1 = Some(Pll {
+        source: PllSource::HSE,
+        prediv: PllPreDiv::DIV1,
+        mul: PllMul::MUL120,
+        fracn: None,
+        divp: Some(PllDiv::DIV2),
+        divq: Some(PllDiv::DIV8),
+        divr: None,
+    });
+    config.rcc.sys = Sysclk::PLL1_P;
+    config.rcc.d1c_pre = AHBPrescaler::DIV1;
+    config.rcc.ahb_pre = AHBPrescaler::DIV2;
+    config.rcc.apb1_pre = APBPrescaler::DIV2;
+    config.rcc.apb2_pre = APBPrescaler::DIV2;
+    config.rcc.apb3_pre = APBPrescaler::DIV2;
+    config.rcc.apb4_pre = APBPrescaler::DIV2;
+    config.rcc.voltage_scale = VoltageScale::Scale0;
+    config
+}
+
+/// Entry point of the STM32H743 board.
+pub fn main() -> ! {
+    let p = embassy_stm32::init(rcc_config());
+    // SRAM1 holds the DMA buffers: keep it allocated to the CPU.
+    pac::RCC.ahb2enr().modify(|w| w.set_sram1en(true));
+    if let Some(mut cp) = cortex_m::Peripherals::take() {
+        cp.SCB.enable_icache();
+        cp.DCB.enable_trace();
+        cp.DWT.enable_cycle_counter();
+    }
+    defmt::info!("stm32h743: TDE firmware");
+
+    // SPI1 slave, RX by DMA into the ring.
+    let mut spi_cfg = spi::Config::default();
+    spi_cfg.mode = spi::MODE_0;
+    spi_cfg.bit_order = BitOrder::MsbFirst;
+    let rx_request = RxDma::<peripherals::SPI1>::request(&*p.DMA1_CH0);
+    let spi = spi::Spi::new_blocking_slave(p.SPI1, p.PA5, p.PA7, p.PA6, p.PA4, spi_cfg);
+    // The driver must stay alive (dropping it disables SPI1).
+    static SPI: StaticCell<spi::Spi<'static, embassy_stm32::mode::Blocking, spi::mode::Slave>> =
+        StaticCell::new();
+    SPI.init(spi);
+    // RX DMA, receive-only, OVR/MODF interrupt, NSS edge interrupt: above the input executor.
+    stm32_link::arm(Priority::P5);
+    let channel = dma::Channel::new(p.DMA1_CH0, Irqs);
+    // SAFETY: RING is used by this DMA ring only, for the rest of the program; the peripheral
+    // address is SPI1's receive data register.
+    let mut ring = unsafe {
+        ReadableRingBuffer::new(
+            channel,
+            rx_request,
+            pac::SPI1.rxdr8().as_ptr(),
+            &mut *core::ptr::addr_of_mut!(RING),
+            TransferOptions::default(),
+        )
+    };
+    ring.start();
+
+    // USART1 TX by DMA.
+    let mut uart_cfg = usart::Config::default();
+    uart_cfg.baudrate = 921_600;
+    let tx = match UartTx::new(p.USART1, p.PA9, p.DMA1_CH1, Irqs, uart_cfg) {
+        Ok(tx) => tx,
+        Err(_) => defmt::panic!("usart config"),
+    };
+
+    // Input on a higher-priority executor: it preempts processing.
+    interrupt::UART4.set_priority(Priority::P6);
+    let high = EXECUTOR_HIGH.start(interrupt::UART4);
+    match input_task(SpiLink::new(ring)) {
+        Ok(t) => high.spawn(t),
+        Err(_) => defmt::panic!("spawn input"),
+    }
+    let executor = EXECUTOR_LOW.init(Executor::new());
+    executor.run(|spawner| {
+        match process_task() {
+            Ok(t) => spawner.spawn(t),
+            Err(_) => defmt::panic!("spawn process"),
+        }
+        match output_task(tx) {
+            Ok(t) => spawner.spawn(t),
+            Err(_) => defmt::panic!("spawn output"),
+        }
+        match status_task() {
+            Ok(t) => spawner.spawn(t),
+            Err(_) => defmt::panic!("spawn status"),
+        }
+    })
+}
