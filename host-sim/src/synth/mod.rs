@@ -1,22 +1,26 @@
 //! Synthetic event-camera sequences with ground truth (`host-sim synth`).
 //!
 //! An ESIM-style simulator: a textured scene (a cylindrical panorama at infinity, optionally a
-//! textured ground plane) seen by a pinhole camera that rotates (and optionally drives forward)
-//! along an analytic [`MotionSpec`]. The log-intensity image is rendered at adaptively chosen
-//! times so that no pixel changes by more than `max_change` x the mean threshold between two
-//! renders; each pixel's threshold crossings are interpolated linearly between renders, which
-//! gives µs-accurate timestamps. An optional [`Flicker`] burst adds a uniform, sinusoidal
-//! illumination change to every pixel (an event storm, as under lamps on AC mains). Seeded with
-//! ChaCha streams: the same [`SynthConfig`] always yields the same events, whatever the number
-//! of render threads.
+//! textured ground plane and independently moving objects, see [`objects`]) seen by a pinhole
+//! camera that rotates (and optionally drives forward) along an analytic [`MotionSpec`]. The
+//! log-intensity image is rendered at adaptively chosen times so that no pixel changes by more
+//! than `max_change` x the mean threshold between two renders; each pixel's threshold crossings
+//! are interpolated linearly between renders, which gives µs-accurate timestamps. An optional
+//! [`Flicker`] burst adds a uniform, sinusoidal illumination change to every pixel (an event
+//! storm, as under lamps on AC mains). Seeded with ChaCha streams: the same [`SynthConfig`]
+//! always yields the same events, whatever the number of render threads.
 //!
 //! Library use: [`generate`] returns a [`Sequence`] in memory (events, ground truth, IMU,
-//! intrinsics); [`write_sequence`] writes the folder layout of `../shared/data/synthetic`.
+//! intrinsics); [`write_sequence`] writes the folder layout of `../shared/data/synthetic`;
+//! [`regime::preset`] builds the configuration of one of the motion regimes (car, drone, hover,
+//! moving objects, pure rotation).
 
 pub mod camera;
 pub mod flicker;
 pub mod motion;
+pub mod objects;
 pub mod output;
+pub mod regime;
 pub mod rng;
 pub mod scene;
 pub mod sensor;
@@ -28,12 +32,15 @@ use serde::{Deserialize, Serialize};
 pub use camera::{Intrinsics, Preset};
 pub use flicker::Flicker;
 pub use motion::{MotionKind, MotionSpec, YawTerm};
+pub use objects::{ObjectKind, ObjectSpec};
 pub use output::write_sequence;
+pub use regime::Regime;
 pub use sensor::SensorParams;
 pub use texture::TextureKind;
 pub use truth::{GtRow, ImuParams, ImuRow};
 
 use motion::Trajectory;
+use objects::{MovingObject, ObjectTexture};
 use scene::{CameraPose, Ground, Panorama, Renderer, Scene};
 use sensor::{RawEvent, Sensor};
 
@@ -100,6 +107,22 @@ pub struct SynthConfig {
     /// serialized form when `None`, so such `meta.json` files are unchanged.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub flicker: Option<Flicker>,
+    /// Number of independently moving objects drawn from the seed (0 = none, the default; at
+    /// most [`MAX_OBJECTS`]). Left out of the serialized form when 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub objects: usize,
+    /// Explicit moving objects that override `objects`. Left out of the serialized form when
+    /// `None`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub object_specs: Option<Vec<ObjectSpec>>,
+}
+
+/// Most moving objects a configuration may ask for.
+pub const MAX_OBJECTS: usize = 16;
+
+/// For serde: true for 0.
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 impl Default for SynthConfig {
@@ -138,6 +161,8 @@ impl SynthConfig {
             imu: ImuParams::default(),
             threads: 0,
             flicker: None,
+            objects: 0,
+            object_specs: None,
         }
     }
 
@@ -157,6 +182,36 @@ impl SynthConfig {
                 )
             }
         }
+    }
+
+    /// The moving objects of this configuration (explicit, or drawn from the seed) for a camera
+    /// that moves along `motion` with positions `trajectory` (`None` = it stays at the origin).
+    pub fn resolve_objects(
+        &self,
+        motion: &MotionSpec,
+        trajectory: Option<&Trajectory>,
+    ) -> Vec<ObjectSpec> {
+        if let Some(specs) = &self.object_specs {
+            return specs.clone();
+        }
+        let mut r = rng::stream(self.seed, rng::Stream::Objects);
+        let i = &self.intrinsics;
+        let half_fov = (0.5 * f64::from(i.width) / i.fx).atan();
+        let camera = |t: f64| {
+            let pos = trajectory.map_or([0.0; 3], |tr| tr.position(t));
+            (pos, motion.heading(t))
+        };
+        (0..self.objects)
+            .map(|_| {
+                ObjectSpec::random(
+                    &mut r,
+                    self.duration_s,
+                    self.cam_height_m,
+                    half_fov,
+                    &camera,
+                )
+            })
+            .collect()
     }
 
     /// Checks the parameters; an error names the first bad one.
@@ -187,9 +242,27 @@ impl SynthConfig {
             self.gt_rate_hz > 0.0 && self.imu.rate_hz > 0.0,
             "rates must be > 0"
         );
-        ensure!(self.cam_height_m > 0.0, "camera height must be > 0");
+        ensure!(
+            self.cam_height_m > 0.0 && self.cam_height_m.is_finite(),
+            "camera height must be > 0"
+        );
         if let Some(f) = &self.flicker {
             f.validate(self.dt_min_s)?;
+        }
+        ensure!(
+            self.objects <= MAX_OBJECTS,
+            "at most {MAX_OBJECTS} moving objects (got {})",
+            self.objects
+        );
+        if let Some(specs) = &self.object_specs {
+            ensure!(
+                specs.len() <= MAX_OBJECTS,
+                "at most {MAX_OBJECTS} moving objects (got {})",
+                specs.len()
+            );
+            for s in specs {
+                s.validate()?;
+            }
         }
         Ok(())
     }
@@ -250,6 +323,8 @@ pub struct Sequence {
     pub intrinsics: Intrinsics,
     /// The motion actually used.
     pub motion: MotionSpec,
+    /// The moving objects actually used (they change the events only).
+    pub objects: Vec<ObjectSpec>,
     /// Events, sorted by time (ties by row, then column).
     pub events: Vec<Event>,
     /// Ground truth at `config.gt_rate_hz`.
@@ -288,8 +363,6 @@ pub fn generate_with_progress(
     cfg.validate()?;
     let intr = cfg.intrinsics;
     let motion = cfg.resolve_motion();
-    let (scene, scene_meta) = build_scene(cfg, &motion);
-    let renderer = Renderer::new(&intr, scene, cfg.thread_count());
     let trajectory =
         (motion.speed.mean_mps > 0.0).then(|| Trajectory::new(&motion, cfg.duration_s));
     let pure_yaw = motion.is_pure_yaw();
@@ -298,7 +371,12 @@ pub fn generate_with_progress(
         heading: motion.heading(t),
         pos: trajectory.as_ref().map_or([0.0; 3], |tr| tr.position(t)),
         pure_yaw,
+        t_s: t,
     };
+    let object_specs = cfg.resolve_objects(&motion, trajectory.as_ref());
+    let (objects, objects_meta) = build_objects(cfg, &object_specs, &pose_at);
+    let (scene, scene_meta) = build_scene(cfg, &motion, objects);
+    let renderer = Renderer::new(&intr, scene, cfg.thread_count());
 
     let n = intr.pixels();
     let h = usize::from(intr.height);
@@ -463,6 +541,9 @@ pub fn generate_with_progress(
         "stats": stats,
         "files": ["events.txt", "gt.csv", "imu.txt"],
     });
+    if !object_specs.is_empty() {
+        meta["objects"] = objects_meta;
+    }
     if let Some(f) = flicker {
         meta["flicker"] = serde_json::json!({
             "model": "log intensity of every pixel + amplitude_log * sin(2 pi freq_hz (t - start_s)) for start_s <= t <= end_s",
@@ -478,6 +559,7 @@ pub fn generate_with_progress(
         config: cfg.clone(),
         intrinsics: intr,
         motion,
+        objects: object_specs,
         events,
         gt,
         imu,
@@ -486,8 +568,13 @@ pub fn generate_with_progress(
     })
 }
 
-/// Builds the textures. Returns the scene and its description for `meta.json`.
-fn build_scene(cfg: &SynthConfig, motion: &MotionSpec) -> (Scene, serde_json::Value) {
+/// Builds the textures and the scene with `objects`. Returns the scene and its description for
+/// `meta.json` (the objects are described by [`build_objects`]).
+fn build_scene(
+    cfg: &SynthConfig,
+    motion: &MotionSpec,
+    objects: Vec<MovingObject>,
+) -> (Scene, serde_json::Value) {
     let intr = &cfg.intrinsics;
     let mut trng = rng::stream(cfg.seed, rng::Stream::Texture);
     let f = 0.5 * (intr.fx + intr.fy);
@@ -546,7 +633,66 @@ fn build_scene(cfg: &SynthConfig, motion: &MotionSpec) -> (Scene, serde_json::Va
         "ground_plane": ground_meta,
         "fast_yaw_renderer": motion.is_pure_yaw() && ground.is_none(),
     });
-    (Scene { panorama, ground }, meta)
+    (
+        Scene {
+            panorama,
+            ground,
+            objects,
+        },
+        meta,
+    )
+}
+
+/// The moving objects with their textures, and their description for `meta.json` (per object:
+/// the spec, its closest distance to the camera, the texel size, and the range of image columns
+/// it covers over the sequence, on a 10 ms grid, `null` if never entirely in front of the
+/// camera). A texel is about a pixel where the object comes closest to the camera.
+fn build_objects(
+    cfg: &SynthConfig,
+    specs: &[ObjectSpec],
+    pose_at: &dyn Fn(f64) -> CameraPose,
+) -> (Vec<MovingObject>, serde_json::Value) {
+    let intr = &cfg.intrinsics;
+    let f = 0.5 * (intr.fx + intr.fy);
+    let mut trng = rng::stream(cfg.seed, rng::Stream::ObjectTexture);
+    let steps = (cfg.duration_s / 0.01).ceil() as usize;
+    let times = (0..=steps).map(|k| (k as f64 * 0.01).min(cfg.duration_s));
+    let mut objects = Vec::new();
+    let mut meta = Vec::new();
+    for spec in specs {
+        let mut closest = f64::INFINITY;
+        let mut cols: Option<(f64, f64)> = None;
+        for t in times.clone() {
+            let pose = pose_at(t);
+            let c = spec.position(t);
+            let e = spec.along();
+            // Closest point of the bottom edge, horizontally.
+            let rel = [c[0] - pose.pos[0], c[2] - pose.pos[2]];
+            let along =
+                (rel[0] * e[0] + rel[1] * e[2]).clamp(-0.5 * spec.width_m, 0.5 * spec.width_m);
+            let d = ((rel[0] - along * e[0]).powi(2) + (rel[1] - along * e[2]).powi(2)).sqrt();
+            closest = closest.min(d);
+            if let Some((a, b)) = spec.columns(&pose, intr) {
+                let (a, b) = (a.max(0.0), b.min(f64::from(intr.width) - 1.0));
+                if a <= b {
+                    cols = Some(cols.map_or((a, b), |(lo, hi)| (lo.min(a), hi.max(b))));
+                }
+            }
+        }
+        let texel_m = (closest.max(0.3) / (f * cfg.tex_res)).max(0.003);
+        let texture = ObjectTexture::new(&mut trng, spec, texel_m, cfg.blur_texels, cfg.contrast);
+        meta.push(serde_json::json!({
+            "spec": spec,
+            "closest_m": closest,
+            "texel_m": texture.texel_m,
+            "columns_covered": cols.map(|(a, b)| [a, b]),
+        }));
+        objects.push(MovingObject {
+            spec: spec.clone(),
+            texture,
+        });
+    }
+    (objects, serde_json::Value::Array(meta))
 }
 
 /// Largest `|a[i] - b[i]|`.

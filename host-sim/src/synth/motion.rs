@@ -181,7 +181,7 @@ impl Speed {
 /// The complete, explicit motion of the camera. Written to `meta.json` under `motion`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MotionSpec {
-    /// Profile name (`constant`, `sinusoid`, `steps`, `car`, or `custom`).
+    /// Profile name (a [`MotionKind::name`], or `custom`).
     pub profile: String,
     /// Heading rate = sum of these terms (rad/s).
     pub yaw: Vec<YawTerm>,
@@ -203,8 +203,23 @@ pub enum MotionKind {
     Sinusoid,
     /// Piecewise-constant yaw rate with 30 ms raised-cosine ramps, a new rate every 0.5-1.1 s.
     Steps,
-    /// Car-like: forward driving with one or two smooth turns, slight lane-keeping wobble.
+    /// Car-like: forward driving with gentle bends (sin^2 lobes of 1-2.5 s, peak 0.65-1.0 x
+    /// (max_rate - wobble)) alternating with lane changes (an S-shaped yaw doublet `+r, -r` of
+    /// 2-3 s in total that shifts the car by one lane, 3.0-3.7 m, unless `r` would exceed the
+    /// peak bound), plus a lane-keeping wobble of 0.04 x max_rate. In a sequence of 4 s or more
+    /// the first two manoeuvres are one bend and one lane change, in random order.
     Car,
+    /// No rotation at all: the yaw rate is exactly 0 (a camera on a tripod, unless a speed or
+    /// a pitch/roll amplitude is set).
+    Static,
+    /// Drone forward flight: yaw turns one after another (sin^2 lobes of 0.5-1.5 s, or held
+    /// turns with 0.15-0.3 s ramps and a 0.2-0.8 s plateau), peak 0.25-1.0 x max_rate, 0.1-0.8 s
+    /// apart, mostly alternating in direction; pitch and roll wobble of a few degrees at 1-6 Hz.
+    Drone,
+    /// Hovering: slow yaw drift in segments of constant rate (0.1-1.0 x max_rate, 0.5-1.5 s,
+    /// raised-cosine ramps of 0.1-0.3 s) separated by pauses of 0.4-1.0 s at exactly 0 rad/s;
+    /// the sequence starts with a pause. No pitch/roll by default.
+    Hover,
 }
 
 impl MotionKind {
@@ -215,6 +230,9 @@ impl MotionKind {
             MotionKind::Sinusoid => "sinusoid",
             MotionKind::Steps => "steps",
             MotionKind::Car => "car",
+            MotionKind::Static => "static",
+            MotionKind::Drone => "drone",
+            MotionKind::Hover => "hover",
         }
     }
 
@@ -224,22 +242,28 @@ impl MotionKind {
             MotionKind::Constant => 0.5,
             MotionKind::Sinusoid => 0.5,
             MotionKind::Steps => 1.2,
-            MotionKind::Car => 0.6,
+            MotionKind::Car => 0.5,
+            MotionKind::Static => 0.0,
+            MotionKind::Drone => 2.0,
+            MotionKind::Hover => 0.2,
         }
     }
 
-    /// Default forward speed (m/s): 8 for `car`, 0 otherwise.
+    /// Default forward speed (m/s): 8 for `car`, 3.5 for `drone`, 0 otherwise.
     pub fn default_speed(self) -> f64 {
         match self {
             MotionKind::Car => 8.0,
+            MotionKind::Drone => 3.5,
             _ => 0.0,
         }
     }
 
-    /// Default pitch/roll oscillation amplitude (rad): 0.004 for `car`, 0 otherwise.
+    /// Default pitch/roll oscillation amplitude (rad): 0.004 for `car`, 0.05 (2.9 deg) for
+    /// `drone`, 0 otherwise.
     pub fn default_pitch_roll(self) -> f64 {
         match self {
             MotionKind::Car => 0.004,
+            MotionKind::Drone => 0.05,
             _ => 0.0,
         }
     }
@@ -296,30 +320,10 @@ impl MotionSpec {
                 }
                 terms
             }
-            MotionKind::Car => {
-                let wobble = 0.04 * max_rate;
-                let mut terms = vec![YawTerm::Sine {
-                    amplitude: wobble,
-                    freq_hz: rng::uniform(rng, 0.2, 0.5),
-                    phase: rng::uniform(rng, 0.0, TAU),
-                }];
-                let peak_max = max_rate - wobble;
-                let mut t = rng::uniform(rng, 0.05, 0.3) * duration_s;
-                let mut sign = rng::sign(rng);
-                while t < duration_s - 0.5 {
-                    let len = (rng::uniform(rng, 0.35, 0.7) * duration_s)
-                        .clamp(0.8, 4.0)
-                        .min(duration_s - t);
-                    terms.push(YawTerm::Turn {
-                        t0: t,
-                        t1: t + len,
-                        peak: sign * rng::uniform(rng, 0.6, 1.0) * peak_max,
-                    });
-                    sign = -sign;
-                    t += len + rng::uniform(rng, 0.3, 1.5);
-                }
-                terms
-            }
+            MotionKind::Car => car_yaw(rng, duration_s, max_rate, speed_mps),
+            MotionKind::Static => Vec::new(),
+            MotionKind::Drone => drone_yaw(rng, duration_s, max_rate),
+            MotionKind::Hover => hover_yaw(rng, duration_s, max_rate),
         };
         let osc = |rng: &mut R| Oscillation {
             components: if pitch_roll > 0.0 {
@@ -339,8 +343,12 @@ impl MotionSpec {
                 Vec::new()
             },
         };
-        let pitch = osc(rng);
-        let roll = osc(rng);
+        let (pitch, roll) = match kind {
+            MotionKind::Drone | MotionKind::Hover => {
+                (drone_wobble(rng, pitch_roll), drone_wobble(rng, pitch_roll))
+            }
+            _ => (osc(rng), osc(rng)),
+        };
         let speed = if speed_mps > 0.0 {
             Speed {
                 mean_mps: speed_mps,
@@ -430,6 +438,156 @@ impl MotionSpec {
             0.0,
             a * h.cos() - v * hd * h.sin(),
         ]
+    }
+}
+
+/// The yaw terms of [`MotionKind::Car`]: a lane-keeping wobble, then bends (sin^2 lobes) and
+/// lane changes (two opposite lobes back to back) one after another. A doublet of peak `r` and
+/// total length `T` at speed `v` moves the car sideways by `v r T^2 / 8` m, so `r` is chosen to
+/// move it by one lane at `speed_mps` (at least 1 m/s assumed), capped at the peak bound.
+fn car_yaw<R: Rng>(rng: &mut R, duration_s: f64, max_rate: f64, speed_mps: f64) -> Vec<YawTerm> {
+    use std::f64::consts::TAU;
+    let wobble = 0.04 * max_rate;
+    let mut terms = vec![YawTerm::Sine {
+        amplitude: wobble,
+        freq_hz: rng::uniform(rng, 0.2, 0.5),
+        phase: rng::uniform(rng, 0.0, TAU),
+    }];
+    let peak_max = max_rate - wobble;
+    let v = speed_mps.max(1.0);
+    let mut t = rng::uniform(rng, 0.1, 0.3);
+    let mut lane = rng.gen::<bool>();
+    let mut first = true;
+    while t < duration_s - 0.8 {
+        let gap = rng::uniform(rng, 0.1, 0.4);
+        let sign = rng::sign(rng);
+        let rest = duration_s - t;
+        if lane && rest >= 2.0 {
+            let mut len = rng::uniform(rng, 2.0, 3.0);
+            if first {
+                // Leave room for a bend of at least 1 s after it.
+                len = len.min(rest - gap - 1.0);
+            }
+            let len = len.max(2.0).min(rest);
+            let offset_m = rng::uniform(rng, 3.0, 3.7);
+            let r = (8.0 * offset_m / (v * len * len)).min(peak_max);
+            let mid = t + 0.5 * len;
+            terms.push(YawTerm::Turn {
+                t0: t,
+                t1: mid,
+                peak: sign * r,
+            });
+            terms.push(YawTerm::Turn {
+                t0: mid,
+                t1: t + len,
+                peak: -sign * r,
+            });
+            t += len + gap;
+        } else {
+            let mut len = rng::uniform(rng, 1.0, 2.5);
+            if first {
+                // Leave room for a lane change of at least 2 s after it.
+                len = len.min(rest - gap - 2.0);
+            }
+            let len = len.max(0.8).min(rest);
+            terms.push(YawTerm::Turn {
+                t0: t,
+                t1: t + len,
+                peak: sign * rng::uniform(rng, 0.65, 1.0) * peak_max,
+            });
+            t += len + gap;
+        }
+        lane = !lane;
+        first = false;
+    }
+    terms
+}
+
+/// The yaw terms of [`MotionKind::Drone`]: turns one after another from 0.1-0.5 s on, each a
+/// sin^2 lobe (60 %) or a held turn (ramp, plateau, ramp), |peak| <= `max_rate`.
+fn drone_yaw<R: Rng>(rng: &mut R, duration_s: f64, max_rate: f64) -> Vec<YawTerm> {
+    let mut terms = Vec::new();
+    let mut t = rng::uniform(rng, 0.1, 0.5);
+    let mut sign = rng::sign(rng);
+    while t < duration_s - 0.3 {
+        let peak = sign * rng::uniform(rng, 0.25, 1.0) * max_rate;
+        if rng.gen::<f64>() < 0.6 {
+            let len = rng::uniform(rng, 0.5, 1.5).min(duration_s - t);
+            terms.push(YawTerm::Turn {
+                t0: t,
+                t1: t + len,
+                peak,
+            });
+            t += len;
+        } else {
+            let ramp_s = rng::uniform(rng, 0.15, 0.3);
+            let hold = rng::uniform(rng, 0.2, 0.8);
+            terms.push(YawTerm::Step {
+                t0: t,
+                delta: peak,
+                ramp_s,
+            });
+            terms.push(YawTerm::Step {
+                t0: t + ramp_s + hold,
+                delta: -peak,
+                ramp_s,
+            });
+            t += 2.0 * ramp_s + hold;
+        }
+        if rng.gen::<f64>() < 0.7 {
+            sign = -sign;
+        }
+        t += rng::uniform(rng, 0.1, 0.8);
+    }
+    terms
+}
+
+/// The yaw terms of [`MotionKind::Hover`]: after a first pause, segments of constant rate
+/// (a step up and the step back down, raised-cosine ramps), each followed by a pause. Between
+/// segments every step has completed and the pairs cancel term by term, so the summed rate is
+/// exactly 0.0 there.
+fn hover_yaw<R: Rng>(rng: &mut R, duration_s: f64, max_rate: f64) -> Vec<YawTerm> {
+    let mut terms = Vec::new();
+    let mut t = rng::uniform(rng, 0.2, 0.8);
+    while t < duration_s {
+        let rate = rng::sign(rng) * rng::uniform(rng, 0.1, 1.0) * max_rate;
+        let ramp_s = rng::uniform(rng, 0.1, 0.3);
+        let hold = rng::uniform(rng, 0.5, 1.5);
+        terms.push(YawTerm::Step {
+            t0: t,
+            delta: rate,
+            ramp_s,
+        });
+        terms.push(YawTerm::Step {
+            t0: t + ramp_s + hold,
+            delta: -rate,
+            ramp_s,
+        });
+        t += 2.0 * ramp_s + hold + rng::uniform(rng, 0.4, 1.0);
+    }
+    terms
+}
+
+/// A drone's attitude wobble about one axis: a component of `amplitude` x 0.5-1.0 at
+/// 1-2.5 Hz and one of half that at 2.5-6 Hz (none when `amplitude` is 0).
+fn drone_wobble<R: Rng>(rng: &mut R, amplitude: f64) -> Oscillation {
+    use std::f64::consts::TAU;
+    if amplitude <= 0.0 {
+        return Oscillation::default();
+    }
+    Oscillation {
+        components: vec![
+            [
+                amplitude * rng::uniform(rng, 0.5, 1.0),
+                rng::uniform(rng, 1.0, 2.5),
+                rng::uniform(rng, 0.0, TAU),
+            ],
+            [
+                0.5 * amplitude * rng::uniform(rng, 0.5, 1.0),
+                rng::uniform(rng, 2.5, 6.0),
+                rng::uniform(rng, 0.0, TAU),
+            ],
+        ],
     }
 }
 

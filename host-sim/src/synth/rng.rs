@@ -1,6 +1,7 @@
 //! Seeded random streams and the few distributions the simulator needs.
 //!
-//! Every purpose (texture, motion, sensor mismatch, noise events, IMU) draws from its own ChaCha
+//! Every purpose (texture, motion, sensor mismatch, noise events, IMU, moving objects, regime
+//! presets) draws from its own ChaCha
 //! stream derived from the one user seed, so changing e.g. the noise rate does not change the
 //! texture. Normal and exponential variates are computed here (no `rand_distr`).
 
@@ -20,6 +21,12 @@ pub enum Stream {
     Noise = 4,
     /// IMU bias and white noise.
     Imu = 5,
+    /// Moving objects: kind, size, path.
+    Objects = 6,
+    /// Moving objects: textures.
+    ObjectTexture = 7,
+    /// The parameters a regime preset draws (speed, camera height, number of objects).
+    Regime = 8,
 }
 
 /// The random generator for `stream` under `seed` (deterministic).
