@@ -163,52 +163,208 @@ pub struct Args {
     /// format in `docs/wire-formats.md`).
     #[arg(long)]
     pub schedule: Option<PathBuf>,
+    /// Send a configuration frame first (sensor size, intrinsics, this layout, stride and
+    /// output period; `docs/wire-formats.md`), so that the firmware runs what this stream needs
+    /// whatever it was built or started with: `dense`, `paper-boxes` or a dense window
+    /// `X0:Y0:W:H`. Needs the focal length; not with `--schedule`.
+    #[arg(long, value_name = "LAYOUT", conflicts_with = "schedule")]
+    pub config: Option<String>,
+    /// Stride (px) of the configuration frame.
+    #[arg(long, default_value_t = 2, requires = "config")]
+    pub config_stride: u16,
+    /// Output period (µs) of the configuration frame.
+    #[arg(long, default_value_t = 1000, requires = "config")]
+    pub config_period_us: u32,
+}
+
+/// The configuration frame `--config` asks for (the principal point row is the sensor's
+/// centre: the firmware's readout does not use it).
+fn config_frame(
+    args: &Args,
+    layout: &str,
+    w: u16,
+    h: u16,
+    focal: Option<f64>,
+    cx: f64,
+) -> Result<Vec<u8>> {
+    use core_nostd::aer::config::{LayoutChoice, StreamConfig};
+    let Some(focal) = focal else {
+        bail!("--config: the focal length is unknown (give --focal-px)");
+    };
+    let layout = match layout {
+        "dense" => LayoutChoice::Dense,
+        "paper-boxes" => LayoutChoice::PaperBoxes,
+        window => {
+            let v: Vec<u16> = window.split(':').filter_map(|p| p.parse().ok()).collect();
+            let [x0, y0, w, h] = v[..] else {
+                bail!("--config {window}: not dense, paper-boxes or X0:Y0:W:H");
+            };
+            LayoutChoice::Window { x0, y0, w, h }
+        }
+    };
+    let cfg = StreamConfig {
+        width: w,
+        height: h,
+        focal_px: U16F16::saturating_from_num(focal),
+        cx: U16F16::saturating_from_num(cx),
+        cy: U16F16::saturating_from_num(f64::from(h.saturating_sub(1)) / 2.0),
+        layout,
+        stride: args.config_stride,
+        period_us: args.config_period_us,
+    };
+    if cfg.validate().is_err() {
+        bail!("--config: the configuration is out of range ({cfg:?})");
+    }
+    let mut buf = [0u8; core_nostd::aer::frame::MAX_FRAME];
+    let flags = core_nostd::aer::frame::flags::STREAM_START;
+    let n = cfg
+        .encode(flags, 0, &mut buf)
+        .map_err(|e| anyhow::anyhow!("--config: {e:?}"))?;
+    Ok(buf[..n].to_vec())
 }
 
 /// Writes the stream and prints one line on stdout:
 /// `events=N t0_us=T width=W height=H focal_bits=F cx_bits=C` (intrinsics as U16F16 bits, the
 /// values `host-sim run` would use; `focal_bits=0` when the focal length is unknown).
 ///
+/// The events are read and encoded a chunk at a time. The firmware runs one pipeline over the
+/// whole stream, so a recording that `host-sim run` would cut into pieces (a gap over
+/// [`crate::timeline::RESTART_GAP_US`] or a backward jump over
+/// [`crate::timeline::RESTART_BACK_US`]) is refused.
+///
 /// # Errors
-/// When the recording cannot be read, its size is unknown, or the stream cannot be written.
+/// When the recording cannot be read, its size is unknown, its clock jumps, or the stream cannot
+/// be written.
 pub fn run(args: Args) -> Result<()> {
-    let rec = formats::read(&args.input, args.format)?;
-    if rec.events.is_empty() {
-        bail!("{}: the recording has no events", args.input.display());
+    let mut outputs = vec![("--out", args.out.as_path())];
+    if let Some(p) = &args.schedule {
+        outputs.push(("--schedule", p.as_path()));
     }
+    crate::output::check_distinct(&[&args.input], &outputs)?;
+    let (mut reader, camera) = crate::commands::run::open_recording(
+        &args.input,
+        args.format,
+        args.width.zip(args.height),
+        args.focal_px,
+        args.cx,
+        true,
+    )?;
     let crate::commands::run::Camera {
         width: w,
         height: h,
         focal,
         cx,
-    } = crate::commands::run::Camera::resolve(
-        args.width.zip(args.height),
-        args.focal_px,
-        args.cx,
-        &rec,
-    )?;
-    let enc = encode_aer_timed(&rec.events)
-        .with_context(|| format!("{} -> {}", args.input.display(), args.out.display()))?;
-    write_atomically(&args.out, |w| {
-        w.write_all(&enc.wire)
-            .with_context(|| format!("cannot write {}", args.out.display()))
-    })?;
-    if let Some(path) = &args.schedule {
-        let bytes = schedule_bytes(&enc.arrivals);
-        write_atomically(path, |w| {
-            w.write_all(&bytes)
-                .with_context(|| format!("cannot write {}", path.display()))
-        })?;
+    } = camera;
+    let mut wire = crate::output::AtomicFile::create(&args.out)?;
+    if let Some(layout) = &args.config {
+        let frame = config_frame(&args, layout, w, h, focal, cx)?;
+        wire.writer()
+            .write_all(&frame)
+            .with_context(|| format!("cannot write {}", args.out.display()))?;
     }
-    let t0 = enc.t0_us;
+    let mut schedule = args
+        .schedule
+        .as_deref()
+        .map(crate::output::AtomicFile::create)
+        .transpose()?;
+    let (events, t0) = stream_aer(&mut reader, &mut wire, schedule.as_mut())
+        .with_context(|| format!("{} -> {}", args.input.display(), args.out.display()))?;
+    if events == 0 {
+        bail!("{}: the recording has no events", args.input.display());
+    }
+    wire.commit()?;
+    if let Some(s) = schedule {
+        s.commit()?;
+    }
     let bits = |v: f64| U16F16::saturating_from_num(v).to_bits();
     println!(
-        "events={} t0_us={t0} width={w} height={h} focal_bits={} cx_bits={}",
-        rec.events.len(),
+        "events={events} t0_us={t0} width={w} height={h} focal_bits={} cx_bits={}",
         focal.map_or(0, bits),
         bits(cx)
     );
     Ok(())
+}
+
+/// Encodes the events of `source` into `wire` (and the arrival schedule into `schedule`) as they
+/// come; returns the number of events and the time origin.
+///
+/// # Errors
+/// When the recording cannot be read, an event does not fit the format, the recording's clock
+/// jumps (see [`run`]), or the output cannot be written.
+pub(crate) fn stream_aer(
+    source: &mut dyn formats::EventChunks,
+    wire: &mut crate::output::AtomicFile,
+    mut schedule: Option<&mut crate::output::AtomicFile>,
+) -> Result<(u64, u64)> {
+    use crate::timeline::{RESTART_BACK_US, RESTART_GAP_US};
+    let mut enc = EventEncoder::new();
+    let mut chunk = Vec::new();
+    let (mut n, mut t0, mut prev, mut prev_rel, mut bytes) = (0u64, 0u64, 0u64, 0u64, 0u64);
+    let mut frames: Vec<u8> = Vec::with_capacity(1 << 16);
+    let mut arrivals: Vec<u8> = Vec::new();
+    let wire_path = wire.path().to_path_buf();
+    let werr = || format!("cannot write {}", wire_path.display());
+    while source.next_chunk(&mut chunk)? {
+        for e in &chunk {
+            if n == 0 {
+                (t0, prev) = (e.t_us, e.t_us);
+            }
+            let jump = if e.t_us >= prev {
+                e.t_us - prev > RESTART_GAP_US
+            } else {
+                prev - e.t_us > RESTART_BACK_US
+            };
+            if jump {
+                bail!(
+                    "event {n} at t = {} µs jumps from {prev} µs (more than {} min forward or {} ms back): `host-sim run` restarts there, the firmware cannot; cut the recording at the jump",
+                    e.t_us,
+                    RESTART_GAP_US / 60_000_000,
+                    RESTART_BACK_US / 1000
+                );
+            }
+            prev = e.t_us;
+            let rel = e.t_us.wrapping_sub(t0);
+            let ev = Event {
+                t_us: rel as u32,
+                x: e.x,
+                y: e.y,
+                on: e.on,
+            };
+            // Frames completed by `push(e)` hold the events before `e`.
+            enc.push(ev, |f| {
+                frames.extend_from_slice(f);
+                bytes += f.len() as u64;
+                arrivals.extend_from_slice(&bytes.to_le_bytes());
+                arrivals.extend_from_slice(&prev_rel.to_le_bytes());
+            })
+            .map_err(|err| anyhow::anyhow!("event {n}: {err}"))?;
+            prev_rel = rel;
+            n += 1;
+        }
+        wire.writer().write_all(&frames).with_context(werr)?;
+        frames.clear();
+        if let Some(s) = schedule.as_deref_mut() {
+            let path = s.path().display().to_string();
+            s.writer()
+                .write_all(&arrivals)
+                .with_context(|| format!("cannot write {path}"))?;
+        }
+        arrivals.clear();
+    }
+    enc.flush(|f| {
+        frames.extend_from_slice(f);
+        bytes += f.len() as u64;
+        arrivals.extend_from_slice(&bytes.to_le_bytes());
+        arrivals.extend_from_slice(&prev_rel.to_le_bytes());
+    });
+    wire.writer().write_all(&frames).with_context(werr)?;
+    if let Some(s) = schedule {
+        let path = s.path().display().to_string();
+        s.writer()
+            .write_all(&arrivals)
+            .with_context(|| format!("cannot write {path}"))?;
+    }
+    Ok((n, t0))
 }
 
 #[cfg(test)]

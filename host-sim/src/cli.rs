@@ -22,6 +22,20 @@ pub struct Cli {
     pub command: Command,
 }
 
+impl Cli {
+    /// Parses a command line (`argv[0]` the program's name), as `main` does.
+    ///
+    /// # Errors
+    /// clap's error for a command line it refuses.
+    pub fn parse_args<I, T>(argv: I) -> Result<Self, clap::Error>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<std::ffi::OsString> + Clone,
+    {
+        <Self as Parser>::try_parse_from(argv)
+    }
+}
+
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Sweep one FAC->TRG pair over time differences 0-100 ms (the paper's Fig. 2b/c).

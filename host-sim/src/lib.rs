@@ -9,5 +9,7 @@ pub mod eval;
 pub mod formats;
 pub mod output;
 pub mod plot;
+pub mod samples;
 pub mod synth;
 pub mod testdata;
+pub mod timeline;

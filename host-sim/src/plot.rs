@@ -105,7 +105,8 @@ pub fn line_panel<DB: plotters::prelude::DrawingBackend>(
     Ok(())
 }
 
-/// A PNG line plot of one or more series sampled at the times `t` (s).
+/// A PNG line plot of one or more series sampled at the times `t` (s), written to a temporary
+/// file and renamed into place.
 pub fn time_series(
     path: &std::path::Path,
     title: &str,
@@ -114,9 +115,11 @@ pub fn time_series(
     lines: &[Line<'_>],
 ) -> anyhow::Result<()> {
     use plotters::prelude::*;
-    let root = BitMapBackend::new(path, (1000, 420)).into_drawing_area();
-    root.fill(&WHITE)?;
-    line_panel(&root, title, 20, y_label, t, lines, true)?;
-    root.present()?;
-    Ok(())
+    crate::output::render_atomically(path, |tmp| {
+        let root = BitMapBackend::new(tmp, (1000, 420)).into_drawing_area();
+        root.fill(&WHITE)?;
+        line_panel(&root, title, 20, y_label, t, lines, true)?;
+        root.present()?;
+        Ok(())
+    })
 }

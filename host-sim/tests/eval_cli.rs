@@ -3,9 +3,8 @@
 use std::path::Path;
 use std::process::Command;
 
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
+mod common;
+use common::host_sim;
 
 fn run_ok(cmd: &mut Command) -> String {
     let out = cmd.output().expect("run host-sim");

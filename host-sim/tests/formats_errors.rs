@@ -2,17 +2,17 @@
 //! the byte offset, exits with code 2, never panics, and leaves no output file.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use host_sim::testdata::shared_data;
 
-const BIN: &str = env!("CARGO_BIN_EXE_host-sim");
+mod common;
+use common::host_sim;
 
 /// Runs `convert input --to csv` (plus `extra` arguments) and checks the failure: exit code 2,
 /// one stderr line starting with `error: ` naming the file and containing every `needles`.
 fn fails(input: &Path, extra: &[&str], needles: &[&str]) {
     let out = input.with_extension("out.csv");
-    let o = Command::new(BIN)
+    let o = host_sim()
         .args([
             "convert",
             input.to_str().unwrap(),
@@ -237,7 +237,7 @@ fn random_bytes_in_every_format_fail_cleanly() {
         "mvsec-hdf5",
     ] {
         let out = tmp.path().join(format!("random_{f}.csv"));
-        let o = Command::new(BIN)
+        let o = host_sim()
             .args([
                 "convert",
                 p.to_str().unwrap(),

@@ -3,12 +3,12 @@
 //! writer's files; the AEDAT4 IMU matches its reference decode.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use host_sim::formats::{self, Format, HostEvent};
 use host_sim::testdata::shared_data;
 
-const BIN: &str = env!("CARGO_BIN_EXE_host-sim");
+mod common;
+use common::convert;
 
 /// (recording, reference CSV, format, width, height, events)
 const REAL: [(&str, &str, Format, u16, u16, usize); 3] = [
@@ -40,26 +40,6 @@ const REAL: [(&str, &str, Format, u16, u16, usize); 3] = [
 
 fn real() -> Option<PathBuf> {
     shared_data("real")
-}
-
-fn convert(input: &Path, to: &str, out: &Path) {
-    let o = Command::new(BIN)
-        .args([
-            "convert",
-            input.to_str().unwrap(),
-            "--to",
-            to,
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "convert {} failed: {}",
-        input.display(),
-        String::from_utf8_lossy(&o.stderr)
-    );
 }
 
 #[test]

@@ -5,33 +5,13 @@
 
 use std::io::Write;
 use std::path::Path;
-use std::process::Command;
 
 use core_nostd::evt::{evt2, evt21};
 use host_sim::formats::{self, Format, HostEvent};
 use host_sim::testdata::shared_data;
 
-const BIN: &str = env!("CARGO_BIN_EXE_host-sim");
-
-fn convert(input: &Path, to: &str, out: &Path) {
-    let o = Command::new(BIN)
-        .args([
-            "convert",
-            input.to_str().unwrap(),
-            "--to",
-            to,
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "convert {} failed: {}",
-        input.display(),
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
+mod common;
+use common::convert;
 
 /// Direct CSV, and CSV after a trip through EVT 3.0, must be byte-identical.
 fn round_trip(input: &Path, tmp: &Path) {

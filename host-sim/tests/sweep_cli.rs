@@ -1,10 +1,7 @@
 //! `host-sim sweep`: the public CSV interface, the plot, and the error convention.
 
-use std::process::Command;
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
+mod common;
+use common::host_sim;
 
 #[test]
 fn sweep_writes_the_documented_csv_and_plot() {

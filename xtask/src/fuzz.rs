@@ -17,6 +17,8 @@ pub const TARGETS: &[&str] = &[
     "pipeline_events",
     "host_formats",
     "mvsec_hdf5",
+    "cli_numbers",
+    "eval_inputs",
 ];
 
 /// `cargo` of the nightly toolchain, whatever toolchain runs this xtask.

@@ -33,6 +33,11 @@ pub struct Args {
 
 /// Runs `host-sim eval`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(p) = &args.plot {
+        let mut inputs = vec![args.yaw.as_path(), args.gt.as_path()];
+        inputs.extend(args.imu.as_deref());
+        crate::output::check_distinct(&inputs, &[("--plot", p)])?;
+    }
     let est = eval::read_estimate(&args.yaw)?;
     let gt = eval::read_gt(&args.gt)?;
     let gyro = args.imu.as_deref().map(eval::read_gyro_yaw).transpose()?;

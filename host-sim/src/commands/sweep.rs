@@ -103,7 +103,8 @@ pub fn run(args: Args) -> Result<()> {
             Model::Fixed => (points.clone(), sweep(Model::Float)),
             Model::Float => (sweep(Model::Fixed), points.clone()),
         };
-        draw(plot, &fixed, &float).with_context(|| format!("cannot draw {}", plot.display()))?;
+        crate::output::render_atomically(plot, |tmp| draw(tmp, &fixed, &float))
+            .with_context(|| format!("cannot draw {}", plot.display()))?;
     }
     let spiking = points.iter().filter(|p| p.spikes > 0).count();
     let max = points.iter().map(|p| p.spikes).max().unwrap_or(0);

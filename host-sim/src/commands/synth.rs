@@ -6,7 +6,9 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use crate::synth::{self, Flicker, Intrinsics, MotionKind, Preset, SynthConfig, TextureKind};
+use crate::synth::{
+    self, regime, Flicker, Intrinsics, MotionKind, Preset, Regime, SynthConfig, TextureKind,
+};
 
 /// Arguments of `host-sim synth`.
 #[derive(Debug, clap::Args)]
@@ -20,9 +22,17 @@ pub struct Args {
     /// Panorama texture.
     #[arg(long, value_enum, default_value = "urban")]
     pub texture: TextureKind,
-    /// Motion profile (parameters drawn from the seed).
-    #[arg(long, value_enum, default_value = "sinusoid")]
-    pub motion: MotionKind,
+    /// A preset for one motion regime: motion, speed, camera height, ground, moving objects and
+    /// peak rate drawn from the seed (car: 5-10 m/s, bends and lane changes up to 0.3-0.5
+    /// rad/s; drone: 2-5 m/s, turns up to 2 rad/s, pitch/roll wobble; hover: slow yaw with
+    /// pauses at 0; objects: static camera, 1-3 moving objects; rotation: the default scene).
+    /// Explicit flags override its values one by one (`--motion` changes only the profile, not
+    /// the regime's peak rate, speed or pitch/roll).
+    #[arg(long, value_enum)]
+    pub regime: Option<Regime>,
+    /// Motion profile (parameters drawn from the seed; default: sinusoid, or the regime's).
+    #[arg(long, value_enum)]
+    pub motion: Option<MotionKind>,
     /// Duration, s.
     #[arg(long, default_value_t = 4.0)]
     pub duration: f64,
@@ -44,18 +54,27 @@ pub struct Args {
     /// Principal point row, px (default: the centre).
     #[arg(long)]
     pub cy: Option<f64>,
-    /// Peak |yaw rate|, rad/s (default: 0.5 constant/sinusoid, 1.2 steps, 0.6 car).
+    /// Peak |yaw rate|, rad/s (default: 0.5 constant/sinusoid/car, 1.2 steps, 2 drone, 0.2
+    /// hover, 0 static).
     #[arg(long)]
     pub max_rate: Option<f64>,
-    /// Mean forward speed, m/s (default: 8 for car, else 0).
+    /// Mean forward speed, m/s (default: 8 for car, 3.5 for drone, else 0).
     #[arg(long)]
     pub speed: Option<f64>,
-    /// Pitch/roll oscillation amplitude, rad (default: 0.004 for car, else 0).
+    /// Pitch/roll oscillation amplitude, rad (default: 0.004 for car, 0.05 for drone, else 0).
     #[arg(long)]
     pub pitch_roll: Option<f64>,
     /// Textured ground plane (default: on when the camera drives).
     #[arg(long)]
     pub ground: Option<bool>,
+    /// Camera height above the ground plane, m (default: 1.4, or the regime's).
+    #[arg(long)]
+    pub camera_height: Option<f64>,
+    /// Number of independently moving objects (people, cars) crossing part of the view, drawn
+    /// from the seed; they change the events, not the ground truth (default: 0, or the
+    /// regime's).
+    #[arg(long)]
+    pub objects: Option<usize>,
     /// Texture log-contrast multiplier.
     #[arg(long, default_value_t = 1.0)]
     pub contrast: f64,
@@ -77,7 +96,7 @@ pub struct Args {
     /// Number of hot pixels.
     #[arg(long, default_value_t = 0)]
     pub hot_pixels: u32,
-    /// Sequence name in meta.json (default: <preset>_<texture>_<motion>).
+    /// Sequence name in meta.json (default: <preset>_<texture>_<motion or regime>).
     #[arg(long)]
     pub name: Option<String>,
     /// Render threads (0 = all cores, at most 4); the output does not depend on it.
@@ -123,7 +142,26 @@ fn parse_flicker_window(s: &str) -> Result<(f64, f64), String> {
 impl Args {
     /// The generator configuration these flags describe.
     pub fn config(&self) -> SynthConfig {
-        let mut cfg = SynthConfig::new(self.preset, self.texture, self.motion);
+        let mut cfg = match self.regime {
+            Some(r) => {
+                let mut cfg = regime::preset_with_texture(
+                    r,
+                    self.seed,
+                    self.duration,
+                    self.preset,
+                    self.texture,
+                );
+                if let Some(m) = self.motion {
+                    cfg.motion = m;
+                }
+                cfg
+            }
+            None => SynthConfig::new(
+                self.preset,
+                self.texture,
+                self.motion.unwrap_or(MotionKind::Sinusoid),
+            ),
+        };
         let p = self.preset.intrinsics();
         let width = self.width.unwrap_or(p.width);
         let height = self.height.unwrap_or(p.height);
@@ -153,6 +191,12 @@ impl Args {
         if let Some(g) = self.ground {
             cfg.ground = g;
         }
+        if let Some(h) = self.camera_height {
+            cfg.cam_height_m = h;
+        }
+        if let Some(n) = self.objects {
+            cfg.objects = n;
+        }
         cfg.contrast = self.contrast;
         cfg.sensor.cp = self.cp;
         cfg.sensor.cm = self.cm;
@@ -174,8 +218,49 @@ impl Args {
     }
 }
 
+/// Checks the number options the scene's geometry is built from: every one finite, the sensor
+/// no larger than the 2048 x 2048 that EVT 3.0 addresses, the focal length and principal point
+/// within what `host-sim run` takes (1 to 65535 px, 0 to 65535 px).
+fn check_numbers(args: &Args) -> anyhow::Result<()> {
+    use crate::commands::run::{MAX_PX, MAX_SENSOR_SIDE};
+    let named = [
+        ("--duration", Some(args.duration)),
+        ("--max-rate", args.max_rate),
+        ("--speed", args.speed),
+        ("--pitch-roll", args.pitch_roll),
+        ("--camera-height", args.camera_height),
+        ("--contrast", Some(args.contrast)),
+        ("--cp", Some(args.cp)),
+        ("--cm", Some(args.cm)),
+        ("--sigma-c", Some(args.sigma_c)),
+        ("--noise-hz", Some(args.noise_hz)),
+        ("--flicker-hz", Some(args.flicker_hz)),
+        ("--flicker-amplitude", Some(args.flicker_amplitude)),
+    ];
+    for (flag, v) in named {
+        if let Some(v) = v.filter(|v| !v.is_finite()) {
+            anyhow::bail!("{flag} must be a finite number (got {v})");
+        }
+    }
+    for (flag, v) in [("--width", args.width), ("--height", args.height)] {
+        if let Some(v) = v.filter(|&v| v > MAX_SENSOR_SIDE) {
+            anyhow::bail!("{flag} must be at most {MAX_SENSOR_SIDE} px (got {v})");
+        }
+    }
+    if let Some(f) = args.focal_px.filter(|f| !(1.0..=MAX_PX).contains(f)) {
+        anyhow::bail!("--focal-px must be a focal length in [1, {MAX_PX}] px (got {f})");
+    }
+    for (flag, v) in [("--cx", args.cx), ("--cy", args.cy)] {
+        if let Some(v) = v.filter(|v| !(0.0..=MAX_PX).contains(v)) {
+            anyhow::bail!("{flag} must be a pixel coordinate in [0, {MAX_PX}] (got {v})");
+        }
+    }
+    Ok(())
+}
+
 /// Runs `host-sim synth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    check_numbers(&args)?;
     let cfg = args.config();
     cfg.validate()?;
     let bar = if std::io::stderr().is_terminal() {
@@ -268,5 +353,46 @@ mod tests {
         }
         // The frequency and amplitude mean nothing without a window.
         assert!(parse(&["--flicker-hz", "50"]).is_err());
+    }
+
+    /// `--regime` gives the library's preset (`rotation`: exactly the default scene); explicit
+    /// flags override single values of it.
+    #[test]
+    fn synth_regime_flags() {
+        assert_eq!(
+            parse(&["--regime", "rotation"]).unwrap().config(),
+            parse(&[]).unwrap().config()
+        );
+        let cfg = parse(&["--regime", "hover", "--seed", "4", "--duration", "2"])
+            .unwrap()
+            .config();
+        assert_eq!(cfg, regime::preset(Regime::Hover, 4, 2.0, Preset::Davis346));
+        let cfg = parse(&[
+            "--regime",
+            "hover",
+            "--seed",
+            "4",
+            "--duration",
+            "2",
+            "--motion",
+            "steps",
+            "--max-rate",
+            "0.1",
+            "--objects",
+            "2",
+            "--camera-height",
+            "2.5",
+        ])
+        .unwrap()
+        .config();
+        let preset = regime::preset(Regime::Hover, 4, 2.0, Preset::Davis346);
+        assert_eq!(cfg.motion, MotionKind::Steps);
+        assert_eq!((cfg.max_rate, cfg.objects, cfg.cam_height_m), (0.1, 2, 2.5));
+        assert_eq!(
+            (cfg.speed_mps, cfg.ground),
+            (preset.speed_mps, preset.ground)
+        );
+        assert_eq!(parse(&[]).unwrap().config().objects, 0);
+        assert!(parse(&["--regime", "boat"]).is_err());
     }
 }

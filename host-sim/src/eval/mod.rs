@@ -168,7 +168,11 @@ pub fn read_gt(path: &Path) -> Result<Series> {
                 .ok()
                 .and_then(|text| parse_csv_series(&text, &["yaw_rate", "yaw_rate_rad_s"]).ok());
             return match simple {
-                Some((_, series, _)) => Ok(series),
+                Some((_, series, _)) => {
+                    check_times(&series, "ground-truth")
+                        .with_context(|| path.display().to_string())?;
+                    Ok(series)
+                }
                 None => Err(e),
             };
         }
@@ -178,20 +182,52 @@ pub fn read_gt(path: &Path) -> Result<Series> {
         "{}: no ground-truth samples",
         path.display()
     );
-    Ok(Series {
+    let series = Series {
         t: gt.iter().map(|g| g.t_s).collect(),
         v: gt.iter().map(|g| g.yaw_rate_rad_s).collect(),
-    })
+    };
+    check_times(&series, "ground-truth").with_context(|| path.display().to_string())?;
+    Ok(series)
+}
+
+/// Checks that a signal's times are finite, never go back and span some time: ground truth or
+/// gyro that does not is refused rather than integrated into a meaningless heading.
+fn check_times(s: &Series, what: &str) -> Result<()> {
+    for (i, w) in s.t.windows(2).enumerate() {
+        if let [a, b] = *w {
+            ensure!(
+                a.is_finite() && b.is_finite(),
+                "{what} sample {} has a time that is not finite",
+                i + 1
+            );
+            ensure!(
+                b >= a,
+                "{what} time goes backwards at sample {} ({b} s after {a} s)",
+                i + 2
+            );
+        }
+    }
+    let (first, last) = (s.t.first().copied(), s.t.last().copied());
+    if let (Some(a), Some(b)) = (first, last) {
+        ensure!(
+            b > a,
+            "all {} {what} samples are at one time ({a} s): no time span to evaluate over",
+            s.len()
+        );
+    }
+    Ok(())
 }
 
 /// Gyro yaw rate `wy` (rad/s) from any file `formats::read_gyro` understands.
 pub fn read_gyro_yaw(path: &Path) -> Result<Series> {
     let g = crate::formats::read_gyro(path)?;
     ensure!(!g.is_empty(), "{}: no gyro samples", path.display());
-    Ok(Series {
+    let series = Series {
         t: g.iter().map(|s| s.t_s).collect(),
         v: g.iter().map(|s| s.wy).collect(),
-    })
+    };
+    check_times(&series, "gyro").with_context(|| path.display().to_string())?;
+    Ok(series)
 }
 
 /// Options of [`evaluate`].
@@ -342,6 +378,20 @@ pub fn evaluate(
     };
     let mut estimate = metrics_on(&t, &x, &g, peak, step, scale);
     estimate.correlation = correlation;
+    if let Some(gs) = gyro {
+        let (g0, g1) = (
+            gs.t.first().copied().unwrap_or(f64::NAN),
+            gs.t.last().copied().unwrap_or(f64::NAN),
+        );
+        let (w0, w1) = (
+            t.first().copied().unwrap_or(0.0),
+            t.last().copied().unwrap_or(0.0),
+        );
+        ensure!(
+            g0 < w1 && g1 > w0,
+            "the gyro ({g0:.3}-{g1:.3} s) and the evaluation window ({w0:.3}-{w1:.3} s) do not overlap: are they on the same clock?"
+        );
+    }
     // The gyro, linearly interpolated; held at its first/last value outside its own span.
     let gyro_aligned = gyro.map(|gs| {
         let first = gs.v.first().copied().unwrap_or(0.0);

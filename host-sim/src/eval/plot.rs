@@ -15,13 +15,18 @@ const GYRO_COLOR: RGBColor = RGBColor(255, 127, 14);
 
 /// Draws the figure for `report` into `path` (PNG, 1200 x 800). `title` heads the figure.
 pub fn plot_report(report: &Report, title: &str, path: &Path) -> Result<()> {
+    crate::output::render_atomically(path, |tmp| draw_report(report, title, tmp, path))
+}
+
+/// [`plot_report`] into the file `tmp`; errors name `path`.
+fn draw_report(report: &Report, title: &str, tmp: &Path, path: &Path) -> Result<()> {
     init_fonts();
     let a = &report.aligned;
     if a.t.len() < 2 {
         return Err(anyhow!("nothing to plot"));
     }
     let err = |e: &dyn std::fmt::Display| anyhow!("cannot draw {}: {e}", path.display());
-    let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
+    let root = BitMapBackend::new(tmp, (1200, 800)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let (top, bottom) = root.split_vertically(420);
     let est_label = match report.estimate.scale {

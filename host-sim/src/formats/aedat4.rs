@@ -18,7 +18,7 @@ use flatbuffers::{
     Verifier, VerifierOptions,
 };
 
-use super::{Format, GyroSample, HostEvent, Recording};
+use super::{GyroSample, HostEvent};
 
 const MAGIC: &[u8] = b"#!AER-DAT4.0\r\n";
 
@@ -225,13 +225,9 @@ fn parse_streams(xml: &str) -> Result<Vec<Stream>, String> {
     Ok(streams)
 }
 
-/// What [`parse`] collects.
-struct Parsed {
-    events: Vec<HostEvent>,
-    gyro: Vec<GyroSample>,
-    size: Option<(u16, u16)>,
-    has_imu: bool,
-}
+/// Most bytes one packet may hold, compressed or decompressed (64 MiB, 4 M events): a packet
+/// that declares more is refused rather than allocated.
+pub const MAX_PACKET_BYTES: usize = 64 << 20;
 
 fn opts() -> VerifierOptions {
     VerifierOptions {
@@ -241,189 +237,310 @@ fn opts() -> VerifierOptions {
     }
 }
 
-fn parse(path: &Path, want_events: bool, want_imu: bool) -> Result<Parsed> {
-    let p = path.display();
-    let file = File::open(path).with_context(|| format!("cannot open {p}"))?;
-    let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let mut r = BufReader::with_capacity(1 << 20, file);
-    let io = |e: std::io::Error| anyhow!("cannot read {p}: {e}");
-
-    let mut magic = [0u8; 14];
-    let n = super::read_up_to(&mut r, &mut magic).map_err(io)?;
-    if n < MAGIC.len() || magic != MAGIC {
-        bail!("{p}: not an AEDAT 4.0 file (no `#!AER-DAT4.0` line at byte 0)");
-    }
+/// Decompresses one packet body into `plain`: the size prefix of its FlatBuffer first, then
+/// exactly the bytes that prefix declares (at most [`MAX_PACKET_BYTES`]), so that a small
+/// packet cannot expand into gigabytes.
+fn decompress(
+    mut dec: impl Read,
+    plain: &mut Vec<u8>,
+    what: &str,
+    pos: u64,
+) -> std::result::Result<(), String> {
+    plain.clear();
     let mut len4 = [0u8; 4];
-    if super::read_up_to(&mut r, &mut len4).map_err(io)? < 4 {
-        bail!("{p}: truncated AEDAT 4.0 header at byte 14");
+    let n = super::read_up_to(&mut dec, &mut len4)
+        .map_err(|e| format!("corrupt {what} packet at byte {pos}: {e}"))?;
+    if n < 4 {
+        return Err(format!(
+            "corrupt {what} packet at byte {pos}: {n} bytes of data, not even a FlatBuffer size"
+        ));
     }
-    let header_len = u32::from_le_bytes(len4) as usize;
-    if header_len as u64 > file_len.saturating_sub(18) {
-        bail!("{p}: truncated AEDAT 4.0 header at byte 18: declares {header_len} bytes, the file has {}", file_len.saturating_sub(18));
+    let declared = u32::from_le_bytes(len4) as usize;
+    if declared > MAX_PACKET_BYTES - 4 {
+        return Err(format!(
+            "{what} packet at byte {pos} declares {declared} bytes of data, more than the {MAX_PACKET_BYTES} this reader accepts"
+        ));
     }
-    // The header is a size-prefixed FlatBuffer starting at byte 14 (alignment counts from there).
-    let mut header = vec![0u8; header_len + 4];
-    header
-        .get_mut(..4)
-        .unwrap_or_default()
-        .copy_from_slice(&len4);
-    if super::read_up_to(&mut r, header.get_mut(4..).unwrap_or_default()).map_err(io)? < header_len
-    {
-        bail!("{p}: truncated AEDAT 4.0 header at byte 18");
+    plain.extend_from_slice(&len4);
+    dec.take(declared as u64)
+        .read_to_end(plain)
+        .map_err(|e| format!("corrupt {what} packet at byte {pos}: {e}"))?;
+    if plain.len() < declared + 4 {
+        return Err(format!(
+            "corrupt {what} packet at byte {pos}: decompresses to {} bytes, its FlatBuffer declares {declared}",
+            plain.len() - 4
+        ));
     }
-    let ioh = flatbuffers::size_prefixed_root_with_opts::<IoHeader>(&opts(), &header)
-        .map_err(|e| anyhow!("{p}: malformed AEDAT 4.0 header at byte 18: {e}"))?;
-    let compression = ioh.compression();
-    if !(0..=4).contains(&compression) {
-        bail!("{p}: unknown AEDAT 4.0 compression {compression} in the header at byte 18");
-    }
-    let table_pos = ioh.data_table_position();
-    let info = ioh.info().ok_or_else(|| {
-        anyhow!("{p}: malformed AEDAT 4.0 header at byte 18: no stream description")
-    })?;
-    let streams = parse_streams(info)
-        .map_err(|e| anyhow!("{p}: malformed AEDAT 4.0 stream description at byte 18: {e}"))?;
-    let ev_stream = streams.iter().find(|s| s.kind == Kind::Events);
-    let imu_stream = streams.iter().find(|s| s.kind == Kind::Imu);
-    let ev_id = ev_stream.map(|s| s.id);
-    let imu_id = imu_stream.map(|s| s.id);
-    if want_events && ev_id.is_none() {
-        bail!("{p}: the AEDAT 4.0 file has no event (EVTS) stream");
-    }
-    if want_imu && !want_events && imu_id.is_none() {
-        bail!("{p}: the AEDAT 4.0 file has no IMU (IMUS) stream");
-    }
-    let mut out = Parsed {
-        events: Vec::new(),
-        gyro: Vec::new(),
-        size: ev_stream.and_then(|s| s.size),
-        has_imu: imu_id.is_some(),
-    };
-
-    let mut pos: u64 = 18 + header_len as u64;
-    let mut body = Vec::new();
-    let mut plain = Vec::new();
-    loop {
-        if table_pos >= 0 && pos == table_pos as u64 {
-            break;
-        }
-        let mut ph = [0u8; 8];
-        let got = super::read_up_to(&mut r, &mut ph).map_err(io)?;
-        if got == 0 {
-            if table_pos >= 0 && (table_pos as u64) > pos {
-                bail!("{p}: truncated AEDAT 4.0 file at byte {pos}: the header announces the file data table at byte {table_pos}");
-            }
-            break;
-        }
-        if got < 8 {
-            bail!("{p}: truncated AEDAT 4.0 packet header at byte {pos}");
-        }
-        let [a, b, c, d, e, f, g, h] = ph;
-        let stream = i32::from_le_bytes([a, b, c, d]);
-        let size = i32::from_le_bytes([e, f, g, h]);
-        if size < 0 {
-            bail!("{p}: malformed AEDAT 4.0 packet at byte {pos}: negative size {size}");
-        }
-        let size = size as usize;
-        if pos + 8 + size as u64 > file_len {
-            bail!(
-                "{p}: truncated AEDAT 4.0 packet at byte {pos}: declares {size} bytes, the file has {} after its header",
-                file_len.saturating_sub(pos + 8)
-            );
-        }
-        if !streams.iter().any(|s| s.id == stream) {
-            bail!("{p}: malformed AEDAT 4.0 packet at byte {pos}: stream id {stream} is not in the file's description");
-        }
-        let wanted = (want_events && Some(stream) == ev_id) || (want_imu && Some(stream) == imu_id);
-        if !wanted {
-            std::io::copy(&mut (&mut r).take(size as u64), &mut std::io::sink()).map_err(io)?;
-            pos += 8 + size as u64;
-            continue;
-        }
-        body.resize(size, 0);
-        if super::read_up_to(&mut r, &mut body).map_err(io)? < size {
-            bail!("{p}: truncated AEDAT 4.0 packet at byte {pos}");
-        }
-        let data: &[u8] = match compression {
-            0 => &body,
-            1 | 2 => {
-                plain.clear();
-                lz4_flex::frame::FrameDecoder::new(&body[..])
-                    .read_to_end(&mut plain)
-                    .map_err(|e| anyhow!("{p}: corrupt LZ4 packet at byte {pos}: {e}"))?;
-                &plain
-            }
-            _ => {
-                plain.clear();
-                zstd::stream::copy_decode(&body[..], &mut plain)
-                    .map_err(|e| anyhow!("{p}: corrupt zstd packet at byte {pos}: {e}"))?;
-                &plain
-            }
-        };
-        let bad = |e: &dyn std::fmt::Display| {
-            anyhow!("{p}: malformed AEDAT 4.0 packet at byte {pos}: {e}")
-        };
-        if Some(stream) == ev_id {
-            if !flatbuffers::buffer_has_identifier(data, "EVTS", true) {
-                return Err(bad(&"stream says events, packet is not EVTS"));
-            }
-            let pkt = flatbuffers::size_prefixed_root_with_opts::<EventPacket>(&opts(), data)
-                .map_err(|e| bad(&e))?;
-            let (chunks, _) = pkt.element_bytes().as_chunks::<16>();
-            out.events.reserve(chunks.len());
-            for ev in chunks {
-                let [t0, t1, t2, t3, t4, t5, t6, t7, x0, x1, y0, y1, on, ..] = *ev;
-                let t = i64::from_le_bytes([t0, t1, t2, t3, t4, t5, t6, t7]);
-                let x = i16::from_le_bytes([x0, x1]);
-                let y = i16::from_le_bytes([y0, y1]);
-                let (Ok(t_us), Ok(x), Ok(y)) =
-                    (u64::try_from(t), u16::try_from(x), u16::try_from(y))
-                else {
-                    return Err(bad(&format!(
-                        "event with negative time or address (t = {t}, x = {x}, y = {y})"
-                    )));
-                };
-                out.events.push(HostEvent {
-                    t_us,
-                    x,
-                    y,
-                    on: on != 0,
-                });
-            }
-        } else {
-            if !flatbuffers::buffer_has_identifier(data, "IMUS", true) {
-                return Err(bad(&"stream says IMU, packet is not IMUS"));
-            }
-            let pkt = flatbuffers::size_prefixed_root_with_opts::<ImuPacket>(&opts(), data)
-                .map_err(|e| bad(&e))?;
-            for imu in pkt.elements().iter().flat_map(|v| v.iter()) {
-                out.gyro.push(GyroSample {
-                    t_s: imu.t() as f64 * 1e-6,
-                    wx: f64::from(imu.f(14)).to_radians(),
-                    wy: f64::from(imu.f(16)).to_radians(),
-                    wz: f64::from(imu.f(18)).to_radians(),
-                });
-            }
-        }
-        pos += 8 + size as u64;
-    }
-    Ok(out)
+    Ok(())
 }
 
-/// Reads the events, sensor size and IMU (as gyro, rad/s) of an AEDAT 4.0 file.
-pub(super) fn read(path: &Path) -> Result<Recording> {
-    let parsed = parse(path, true, true)?;
-    Ok(Recording {
-        events: parsed.events,
-        width: parsed.size.map(|s| s.0),
-        height: parsed.size.map(|s| s.1),
-        intrinsics: None,
-        gyro: parsed.has_imu.then_some(parsed.gyro),
-        format: Format::Aedat4,
-    })
+/// An AEDAT 4.0 stream read packet by packet (memory: one packet).
+pub struct Aedat4Reader<R> {
+    r: BufReader<R>,
+    path: std::path::PathBuf,
+    /// File length, when the input is a regular file (packet sizes are checked against it).
+    file_len: Option<u64>,
+    compression: i32,
+    table_pos: i64,
+    stream_ids: Vec<i32>,
+    ev_id: Option<i32>,
+    imu_id: Option<i32>,
+    /// Sensor size of the event stream.
+    pub size: Option<(u16, u16)>,
+    /// Whether the file has an IMU stream.
+    pub has_imu: bool,
+    want_events: bool,
+    want_imu: bool,
+    pos: u64,
+    body: Vec<u8>,
+    plain: Vec<u8>,
+    done: bool,
+}
+
+impl<R: Read> Aedat4Reader<R> {
+    /// Reads the file header from `r` (the content of `path`, `file_len` bytes long when known).
+    ///
+    /// # Errors
+    /// When the header is truncated or malformed, or the wanted stream is missing.
+    pub fn open(
+        r: R,
+        path: &Path,
+        file_len: Option<u64>,
+        want_events: bool,
+        want_imu: bool,
+    ) -> Result<Self> {
+        let p = path.display();
+        let mut r = BufReader::with_capacity(1 << 20, r);
+        let io = |e: std::io::Error| anyhow!("cannot read {p}: {e}");
+        let mut magic = [0u8; 14];
+        let n = super::read_up_to(&mut r, &mut magic).map_err(io)?;
+        if n < MAGIC.len() || magic != MAGIC {
+            bail!("{p}: not an AEDAT 4.0 file (no `#!AER-DAT4.0` line at byte 0)");
+        }
+        let mut len4 = [0u8; 4];
+        if super::read_up_to(&mut r, &mut len4).map_err(io)? < 4 {
+            bail!("{p}: truncated AEDAT 4.0 header at byte 14");
+        }
+        let header_len = u32::from_le_bytes(len4) as usize;
+        let room = file_len.map_or(MAX_PACKET_BYTES as u64, |l| l.saturating_sub(18));
+        if header_len as u64 > room {
+            bail!("{p}: truncated AEDAT 4.0 header at byte 18: declares {header_len} bytes, the file has {room}");
+        }
+        // The header is a size-prefixed FlatBuffer starting at byte 14 (alignment counts from
+        // there).
+        let mut header = vec![0u8; header_len + 4];
+        header
+            .get_mut(..4)
+            .unwrap_or_default()
+            .copy_from_slice(&len4);
+        if super::read_up_to(&mut r, header.get_mut(4..).unwrap_or_default()).map_err(io)?
+            < header_len
+        {
+            bail!("{p}: truncated AEDAT 4.0 header at byte 18");
+        }
+        let ioh = flatbuffers::size_prefixed_root_with_opts::<IoHeader>(&opts(), &header)
+            .map_err(|e| anyhow!("{p}: malformed AEDAT 4.0 header at byte 18: {e}"))?;
+        let compression = ioh.compression();
+        if !(0..=4).contains(&compression) {
+            bail!("{p}: unknown AEDAT 4.0 compression {compression} in the header at byte 18");
+        }
+        let table_pos = ioh.data_table_position();
+        let info = ioh.info().ok_or_else(|| {
+            anyhow!("{p}: malformed AEDAT 4.0 header at byte 18: no stream description")
+        })?;
+        let streams = parse_streams(info)
+            .map_err(|e| anyhow!("{p}: malformed AEDAT 4.0 stream description at byte 18: {e}"))?;
+        let ev_stream = streams.iter().find(|s| s.kind == Kind::Events);
+        let imu_stream = streams.iter().find(|s| s.kind == Kind::Imu);
+        let ev_id = ev_stream.map(|s| s.id);
+        let imu_id = imu_stream.map(|s| s.id);
+        if want_events && ev_id.is_none() {
+            bail!("{p}: the AEDAT 4.0 file has no event (EVTS) stream");
+        }
+        if want_imu && !want_events && imu_id.is_none() {
+            bail!("{p}: the AEDAT 4.0 file has no IMU (IMUS) stream");
+        }
+        Ok(Self {
+            r,
+            path: path.to_path_buf(),
+            file_len,
+            compression,
+            table_pos,
+            stream_ids: streams.iter().map(|s| s.id).collect(),
+            ev_id,
+            imu_id,
+            size: ev_stream.and_then(|s| s.size),
+            has_imu: imu_id.is_some(),
+            want_events,
+            want_imu,
+            pos: 18 + header_len as u64,
+            body: Vec::new(),
+            plain: Vec::new(),
+            done: false,
+        })
+    }
+
+    /// Reads packets up to the next wanted one and appends its events or gyro samples; returns
+    /// `false` at the end of the file.
+    ///
+    /// # Errors
+    /// When a packet is truncated, corrupt or malformed (the message names its byte offset).
+    pub fn next_packet(
+        &mut self,
+        events: &mut Vec<HostEvent>,
+        gyro: &mut Vec<GyroSample>,
+    ) -> Result<bool> {
+        let p = self.path.display();
+        let io = |e: std::io::Error| anyhow!("cannot read {p}: {e}");
+        loop {
+            if self.done {
+                return Ok(false);
+            }
+            let (pos, table_pos) = (self.pos, self.table_pos);
+            if table_pos >= 0 && pos == table_pos as u64 {
+                self.done = true;
+                return Ok(false);
+            }
+            let mut ph = [0u8; 8];
+            let got = super::read_up_to(&mut self.r, &mut ph).map_err(io)?;
+            if got == 0 {
+                if table_pos >= 0 && (table_pos as u64) > pos {
+                    bail!("{p}: truncated AEDAT 4.0 file at byte {pos}: the header announces the file data table at byte {table_pos}");
+                }
+                self.done = true;
+                return Ok(false);
+            }
+            if got < 8 {
+                bail!("{p}: truncated AEDAT 4.0 packet header at byte {pos}");
+            }
+            let [a, b, c, d, e, f, g, h] = ph;
+            let stream = i32::from_le_bytes([a, b, c, d]);
+            let size = i32::from_le_bytes([e, f, g, h]);
+            if size < 0 {
+                bail!("{p}: malformed AEDAT 4.0 packet at byte {pos}: negative size {size}");
+            }
+            let size = size as usize;
+            if let Some(len) = self.file_len {
+                if pos + 8 + size as u64 > len {
+                    bail!(
+                        "{p}: truncated AEDAT 4.0 packet at byte {pos}: declares {size} bytes, the file has {} after its header",
+                        len.saturating_sub(pos + 8)
+                    );
+                }
+            }
+            if !self.stream_ids.contains(&stream) {
+                bail!("{p}: malformed AEDAT 4.0 packet at byte {pos}: stream id {stream} is not in the file's description");
+            }
+            let wanted = (self.want_events && Some(stream) == self.ev_id)
+                || (self.want_imu && Some(stream) == self.imu_id);
+            if !wanted {
+                let skipped =
+                    std::io::copy(&mut (&mut self.r).take(size as u64), &mut std::io::sink())
+                        .map_err(io)?;
+                if skipped < size as u64 {
+                    bail!("{p}: truncated AEDAT 4.0 packet at byte {pos}");
+                }
+                self.pos += 8 + size as u64;
+                continue;
+            }
+            if size > MAX_PACKET_BYTES {
+                bail!("{p}: AEDAT 4.0 packet at byte {pos} declares {size} bytes, more than the {MAX_PACKET_BYTES} this reader accepts");
+            }
+            self.body.resize(size, 0);
+            if super::read_up_to(&mut self.r, &mut self.body).map_err(io)? < size {
+                bail!("{p}: truncated AEDAT 4.0 packet at byte {pos}");
+            }
+            let data: &[u8] = match self.compression {
+                0 => &self.body,
+                1 | 2 => {
+                    decompress(
+                        lz4_flex::frame::FrameDecoder::new(&self.body[..]),
+                        &mut self.plain,
+                        "LZ4",
+                        pos,
+                    )
+                    .map_err(|e| anyhow!("{p}: {e}"))?;
+                    &self.plain
+                }
+                _ => {
+                    let dec = zstd::stream::read::Decoder::with_buffer(&self.body[..])
+                        .map_err(|e| anyhow!("{p}: corrupt zstd packet at byte {pos}: {e}"))?;
+                    decompress(dec, &mut self.plain, "zstd", pos)
+                        .map_err(|e| anyhow!("{p}: {e}"))?;
+                    &self.plain
+                }
+            };
+            if Some(stream) == self.ev_id {
+                events_of(data, events)
+                    .map_err(|e| anyhow!("{p}: malformed AEDAT 4.0 packet at byte {pos}: {e}"))?;
+            } else {
+                gyro_of(data, gyro)
+                    .map_err(|e| anyhow!("{p}: malformed AEDAT 4.0 packet at byte {pos}: {e}"))?;
+            }
+            self.pos += 8 + size as u64;
+            return Ok(true);
+        }
+    }
+}
+
+/// Appends the events of a decompressed `EVTS` packet.
+fn events_of(data: &[u8], out: &mut Vec<HostEvent>) -> std::result::Result<(), String> {
+    if !flatbuffers::buffer_has_identifier(data, "EVTS", true) {
+        return Err("stream says events, packet is not EVTS".into());
+    }
+    let pkt = flatbuffers::size_prefixed_root_with_opts::<EventPacket>(&opts(), data)
+        .map_err(|e| e.to_string())?;
+    let (chunks, _) = pkt.element_bytes().as_chunks::<16>();
+    out.reserve(chunks.len());
+    for ev in chunks {
+        let [t0, t1, t2, t3, t4, t5, t6, t7, x0, x1, y0, y1, on, ..] = *ev;
+        let t = i64::from_le_bytes([t0, t1, t2, t3, t4, t5, t6, t7]);
+        let x = i16::from_le_bytes([x0, x1]);
+        let y = i16::from_le_bytes([y0, y1]);
+        let (Ok(t_us), Ok(x), Ok(y)) = (u64::try_from(t), u16::try_from(x), u16::try_from(y))
+        else {
+            return Err(format!(
+                "event with negative time or address (t = {t}, x = {x}, y = {y})"
+            ));
+        };
+        out.push(HostEvent {
+            t_us,
+            x,
+            y,
+            on: on != 0,
+        });
+    }
+    Ok(())
+}
+
+/// Appends the gyro samples (rad/s) of a decompressed `IMUS` packet.
+fn gyro_of(data: &[u8], out: &mut Vec<GyroSample>) -> std::result::Result<(), String> {
+    if !flatbuffers::buffer_has_identifier(data, "IMUS", true) {
+        return Err("stream says IMU, packet is not IMUS".into());
+    }
+    let pkt = flatbuffers::size_prefixed_root_with_opts::<ImuPacket>(&opts(), data)
+        .map_err(|e| e.to_string())?;
+    for imu in pkt.elements().iter().flat_map(|v| v.iter()) {
+        out.push(GyroSample {
+            t_s: imu.t() as f64 * 1e-6,
+            wx: f64::from(imu.f(14)).to_radians(),
+            wy: f64::from(imu.f(16)).to_radians(),
+            wz: f64::from(imu.f(18)).to_radians(),
+        });
+    }
+    Ok(())
 }
 
 /// Reads the IMU stream of an AEDAT 4.0 file as gyro samples (deg/s converted to rad/s).
 pub(super) fn read_gyro(path: &Path) -> Result<Vec<GyroSample>> {
-    Ok(parse(path, false, true)?.gyro)
+    let file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let len = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
+    let mut r = Aedat4Reader::open(file, path, len, false, true)?;
+    let mut gyro = Vec::new();
+    while r.next_packet(&mut Vec::new(), &mut gyro)? {}
+    Ok(gyro)
 }

@@ -6,31 +6,20 @@ use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
 
-use super::text::{self, csv_fields, line_error, Lines};
-use super::{Format, GtSample, GyroSample, HostEvent, Recording};
+use super::text::{self, buf_line_error, csv_fields, Lines};
+use super::{GtSample, GyroSample, HostEvent};
 
 /// The header line written by [`write_csv`], identical to the reference decodes'.
 pub const CSV_HEADER: &str = "t_us,x,y,p";
 
-/// Reads `t_us,x,y,p` events (header line optional, `#` comments and blank lines skipped).
-pub(super) fn read_events(path: &Path) -> Result<Recording> {
-    let events = text::read_event_lines(
-        path,
-        text::Separator::Comma,
-        text::parse_u64,
-        true,
-        "`t_us,x,y,p` (integers, p = 0 or 1)",
-        24,
-    )?;
-    Ok(Recording {
-        events,
-        width: None,
-        height: None,
-        intrinsics: None,
-        gyro: None,
-        format: Format::Csv,
-    })
-}
+/// The line format of event CSV: `t_us,x,y,p` (header line optional; when present it names the
+/// columns, in any order), `#` comments and blank lines skipped.
+pub(super) const EVENTS: text::LineFormat = text::LineFormat {
+    sep: text::Separator::Comma,
+    time: text::parse_u64,
+    header: true,
+    expected: "`t_us,x,y,p` (integers, p = 0 or 1)",
+};
 
 /// Writes events as `t_us,x,y,p` with a header line, one line per event in the given order,
 /// `p` = 1 for ON and 0 for OFF, `\n` line ends: the layout of the reference decodes in
@@ -40,26 +29,63 @@ pub(super) fn read_events(path: &Path) -> Result<Recording> {
 /// When the file cannot be written.
 pub fn write_csv(events: &[HostEvent], out: &Path) -> Result<()> {
     crate::output::write_atomically(out, |w| {
+        let mut csv = CsvWriter::new(w, out)?;
+        csv.push(events)?;
+        csv.finish()
+    })
+}
+
+/// Writes events as CSV (see [`write_csv`]) to a byte stream, as they come.
+pub struct CsvWriter<'w, W: Write> {
+    w: &'w mut W,
+    out: &'w Path,
+    line: Vec<u8>,
+}
+
+impl<'w, W: Write> CsvWriter<'w, W> {
+    /// Writes the header line into `w` (the content of `out`).
+    ///
+    /// # Errors
+    /// When the file cannot be written.
+    pub fn new(w: &'w mut W, out: &'w Path) -> Result<Self> {
         let mut line = Vec::with_capacity(64 * 1024);
         line.extend_from_slice(CSV_HEADER.as_bytes());
         line.push(b'\n');
+        Ok(Self { w, out, line })
+    }
+
+    /// Writes the events.
+    ///
+    /// # Errors
+    /// When the file cannot be written.
+    pub fn push(&mut self, events: &[HostEvent]) -> Result<()> {
+        let line = &mut self.line;
         for e in events {
-            push_u64(&mut line, e.t_us);
+            push_u64(line, e.t_us);
             line.push(b',');
-            push_u64(&mut line, u64::from(e.x));
+            push_u64(line, u64::from(e.x));
             line.push(b',');
-            push_u64(&mut line, u64::from(e.y));
+            push_u64(line, u64::from(e.y));
             line.extend_from_slice(if e.on { b",1\n" } else { b",0\n" });
             if line.len() >= 60 * 1024 {
-                w.write_all(&line)
-                    .with_context(|| format!("cannot write {}", out.display()))?;
+                self.w
+                    .write_all(line)
+                    .with_context(|| format!("cannot write {}", self.out.display()))?;
                 line.clear();
             }
         }
-        w.write_all(&line)
-            .with_context(|| format!("cannot write {}", out.display()))?;
         Ok(())
-    })
+    }
+
+    /// Writes what is buffered.
+    ///
+    /// # Errors
+    /// When the file cannot be written.
+    pub fn finish(self) -> Result<()> {
+        self.w
+            .write_all(&self.line)
+            .with_context(|| format!("cannot write {}", self.out.display()))
+    }
 }
 
 /// Appends the decimal digits of `v`.
@@ -114,7 +140,7 @@ fn read_columns<const N: usize>(
             *v = match fields.get(c).and_then(|f| text::parse_f64(f)) {
                 Some(x) => x,
                 None => {
-                    return Err(line_error(
+                    return Err(buf_line_error(
                         path,
                         &buf,
                         off,

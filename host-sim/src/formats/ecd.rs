@@ -8,29 +8,17 @@ use std::path::Path;
 use anyhow::{anyhow, Context, Result};
 
 use super::rotation::{yaw_rates_central, Mat3};
-use super::text::{self, line_error, ws_fields, Lines};
-use super::{Format, GtSample, GyroSample, Intrinsics, Recording};
+use super::text::{self, buf_line_error, ws_fields, Lines};
+use super::{GtSample, GyroSample, Intrinsics};
 
-/// Reads `events.txt`: one `t[s] x y p` per line (p = 1 ON, 0 OFF), times converted to µs
-/// exactly.
-pub(super) fn read_events(path: &Path) -> Result<Recording> {
-    let events = text::read_event_lines(
-        path,
-        text::Separator::Whitespace,
-        text::parse_seconds_us,
-        false,
-        "`t x y p` (t in s, p = 0 or 1)",
-        18,
-    )?;
-    Ok(Recording {
-        events,
-        width: None,
-        height: None,
-        intrinsics: None,
-        gyro: None,
-        format: Format::EcdText,
-    })
-}
+/// The line format of `events.txt`: one `t[s] x y p` per line (p = 1 ON, 0 OFF), times
+/// converted to µs exactly.
+pub(super) const EVENTS: text::LineFormat = text::LineFormat {
+    sep: text::Separator::Whitespace,
+    time: text::parse_seconds_us,
+    header: false,
+    expected: "`t x y p` (t in s, p = 0 or 1)",
+};
 
 /// Reads the numeric rows of a whitespace-separated file with exactly `n` columns.
 fn rows(path: &Path, n: usize, expected: &str) -> Result<Vec<Vec<f64>>> {
@@ -43,7 +31,7 @@ fn rows(path: &Path, n: usize, expected: &str) -> Result<Vec<Vec<f64>>> {
         let row: Option<Vec<f64>> = ws_fields(line).map(text::parse_f64).collect();
         match row {
             Some(r) if r.len() == n => out.push(r),
-            _ => return Err(line_error(path, &buf, off, line_no + 1, line, expected)),
+            _ => return Err(buf_line_error(path, &buf, off, line_no + 1, line, expected)),
         }
     }
     Ok(out)
@@ -97,7 +85,7 @@ pub(super) fn read_calib(path: &Path) -> Result<Intrinsics> {
             cx: *cx,
             cy: *cy,
         }),
-        _ => Err(line_error(
+        _ => Err(buf_line_error(
             path,
             &buf,
             off,

@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::{anyhow, Context, Result};
 use serde_json::Value;
 
-use super::{ecd, Intrinsics, Recording};
+use super::{ecd, Intrinsics, RecordingInfo};
 
 /// Sensor size and intrinsics from a `meta.json`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -57,35 +57,62 @@ pub fn read_meta(path: &Path) -> Result<Meta> {
     Ok(meta)
 }
 
-/// Fills sensor size, intrinsics and gyro of `rec` from files beside `events_path`.
-pub fn complete_from_folder(events_path: &Path, rec: &mut Recording) -> Result<()> {
+/// Which sidecar values a caller needs: only the files that can supply a missing, needed value
+/// are read, so that a malformed sidecar file does not stop a run that has every value from its
+/// flags.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Needs {
+    /// Sensor width and height (`meta.json`).
+    pub size: bool,
+    /// Intrinsics (`meta.json`, `calib.txt`).
+    pub intrinsics: bool,
+    /// Gyro (`imu.txt`).
+    pub gyro: bool,
+}
+
+impl Needs {
+    /// Everything the folder can give.
+    pub const ALL: Self = Self {
+        size: true,
+        intrinsics: true,
+        gyro: true,
+    };
+}
+
+/// Fills sensor size, intrinsics and gyro of `info` from files beside `events_path`, where
+/// `needs` asks for them and the event file did not give them.
+pub fn complete_from_folder(
+    events_path: &Path,
+    info: &mut RecordingInfo,
+    needs: Needs,
+) -> Result<()> {
     let dir = match events_path.parent() {
         Some(d) if d.as_os_str().is_empty() => Path::new("."),
         Some(d) => d,
         None => return Ok(()),
     };
+    let want_size = needs.size && (info.width.is_none() || info.height.is_none());
+    let want_intrinsics = needs.intrinsics && info.intrinsics.is_none();
     let meta_path = dir.join("meta.json");
-    if meta_path.is_file()
-        && (rec.width.is_none() || rec.height.is_none() || rec.intrinsics.is_none())
-    {
+    if meta_path.is_file() && (want_size || want_intrinsics) {
         let meta = read_meta(&meta_path)?;
-        if rec.width.is_none() || rec.height.is_none() {
+        if want_size {
             if let (Some(w), Some(h)) = (meta.width, meta.height) {
-                rec.width = Some(w);
-                rec.height = Some(h);
+                info.width = Some(w);
+                info.height = Some(h);
             }
         }
-        if rec.intrinsics.is_none() {
-            rec.intrinsics = meta.intrinsics;
+        if want_intrinsics {
+            info.intrinsics = meta.intrinsics;
         }
     }
     let calib = dir.join("calib.txt");
-    if rec.intrinsics.is_none() && calib.is_file() {
-        rec.intrinsics = Some(ecd::read_calib(&calib)?);
+    if needs.intrinsics && info.intrinsics.is_none() && calib.is_file() {
+        info.intrinsics = Some(ecd::read_calib(&calib)?);
     }
     let imu = dir.join("imu.txt");
-    if rec.gyro.is_none() && imu.is_file() && !same_file(&imu, events_path) {
-        rec.gyro = Some(ecd::read_imu(&imu)?);
+    if needs.gyro && info.gyro.is_none() && imu.is_file() && !same_file(&imu, events_path) {
+        info.gyro = Some(ecd::read_imu(&imu)?);
     }
     Ok(())
 }

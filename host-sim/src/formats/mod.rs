@@ -19,6 +19,8 @@
 //!   when the camera turns right, i.e. the scene moves left in the image (see `read_ground_truth`).
 //! - Errors name the file and, for malformed content, the byte offset; nothing here panics on
 //!   bad input.
+//! - [`EventReader`] reads the events of every format a chunk at a time (memory bounded by the
+//!   chunk, not the recording); [`read`] collects them all, for recordings that fit in memory.
 
 mod aedat4;
 mod csv;
@@ -27,6 +29,7 @@ mod meta;
 mod mvsec;
 pub mod raw;
 mod rotation;
+pub mod stream;
 mod text;
 
 use std::fmt;
@@ -37,8 +40,10 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use core_nostd::event::Event64;
 
-pub use csv::write_csv;
+pub use csv::{write_csv, CsvWriter};
+pub use meta::Needs;
 pub use raw::write_evt3;
+pub use stream::{EventChunks, EventReader, RecordingInfo};
 
 /// One event on the host: absolute time in µs (`u64`), pixel and polarity.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -206,8 +211,8 @@ enum Content {
     Unknown,
 }
 
-fn sniff(path: &Path) -> Result<Content> {
-    let head = read_head(path)?;
+/// What the first bytes `head` of `path` hold.
+fn sniff(path: &Path, head: &[u8]) -> Result<Content> {
     if head.starts_with(AEDAT4_MAGIC) {
         return Ok(Content::Events(Format::Aedat4));
     }
@@ -223,10 +228,10 @@ fn sniff(path: &Path) -> Result<Content> {
         return Ok(Content::Events(Format::MvsecHdf5));
     }
     if head.first() == Some(&b'%') {
-        let h = raw::parse_header(&head);
+        let h = raw::parse_header(head);
         return Ok(h.format.map_or(Content::RawUnknown, Content::Events));
     }
-    Ok(match text::classify(&head) {
+    Ok(match text::classify(head) {
         text::Kind::EventsCsv => Content::Events(Format::Csv),
         text::Kind::EventsText => Content::Events(Format::EcdText),
         text::Kind::GtCsv => Content::OtherText("a ground-truth CSV (t_s,wx,wy,wz,...)"),
@@ -247,7 +252,12 @@ fn sniff(path: &Path) -> Result<Content> {
 /// what it looks like, and that `--format` overrides detection).
 pub fn detect(path: impl AsRef<Path>) -> Result<Format> {
     let path = path.as_ref();
-    match sniff(path)? {
+    detected(path, sniff(path, &read_head(path)?)?)
+}
+
+/// The event format of what [`sniff`] found, or the error saying what the file is instead.
+fn detected(path: &Path, content: Content) -> Result<Format> {
+    match content {
         Content::Events(f) => Ok(f),
         Content::RawUnknown => bail!(
             "{}: the Prophesee header names no event format (no `format`, `evt` or known `system_ID` line); pass --format evt2|evt21|evt3",
@@ -271,19 +281,23 @@ pub fn detect(path: impl AsRef<Path>) -> Result<Format> {
 /// byte offset), or a sibling file it uses is malformed.
 pub fn read(path: impl AsRef<Path>, format: Option<Format>) -> Result<Recording> {
     let path = path.as_ref();
-    let format = match format {
-        Some(f) => f,
-        None => detect(path)?,
-    };
-    let mut rec = match format {
-        Format::Csv => csv::read_events(path)?,
-        Format::EcdText => ecd::read_events(path)?,
-        Format::Evt2 | Format::Evt21 | Format::Evt3 => raw::read_raw(path, format)?.0,
-        Format::Aedat4 => aedat4::read(path)?,
-        Format::MvsecHdf5 => mvsec::read_events(path)?,
-    };
-    meta::complete_from_folder(path, &mut rec)?;
-    Ok(rec)
+    let mut reader = EventReader::open(path, format, true)?;
+    reader.complete_from_folder(Needs::ALL)?;
+    let mut events = Vec::new();
+    let mut chunk = Vec::new();
+    while reader.next_chunk(&mut chunk)? {
+        events.append(&mut chunk);
+    }
+    let gyro = reader.take_gyro();
+    let info = reader.info;
+    Ok(Recording {
+        events,
+        width: info.width,
+        height: info.height,
+        intrinsics: info.intrinsics,
+        gyro,
+        format: info.format,
+    })
 }
 
 /// Reads ground truth as yaw rate samples, from:
@@ -340,12 +354,15 @@ pub fn read_gyro(path: impl AsRef<Path>) -> Result<Vec<GyroSample>> {
     }
 }
 
-/// The first 64 KiB of a file.
+/// Bytes read for format detection.
+const HEAD_BYTES: usize = 64 * 1024;
+
+/// The first [`HEAD_BYTES`] of a file.
 fn read_head(path: &Path) -> Result<Vec<u8>> {
-    let mut head = Vec::with_capacity(64 * 1024);
+    let mut head = Vec::with_capacity(HEAD_BYTES);
     File::open(path)
         .with_context(|| format!("cannot open {}", path.display()))?
-        .take(64 * 1024)
+        .take(HEAD_BYTES as u64)
         .read_to_end(&mut head)
         .with_context(|| format!("cannot read {}", path.display()))?;
     Ok(head)

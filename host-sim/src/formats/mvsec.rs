@@ -12,7 +12,7 @@ use anyhow::{anyhow, bail, Context, Result};
 
 use super::rotation::{yaw_rates_central, Mat3};
 use super::text::seconds_to_us;
-use super::{Format, GtSample, GyroSample, HostEvent, Recording};
+use super::{GtSample, GyroSample, HostEvent};
 
 fn open(path: &Path) -> Result<hdf5::File> {
     precheck(path)?;
@@ -64,8 +64,9 @@ const VALUES_PER_STORED_BYTE: u64 = 1024;
 /// Values a dataset may declare beyond [`VALUES_PER_STORED_BYTE`] (small unwritten datasets).
 const UNSTORED_VALUES: u64 = 1 << 16;
 
-/// Reads dataset `name` as f64 with its shape.
-fn dataset(file: &hdf5::File, path: &Path, name: &str) -> Result<(Vec<f64>, Vec<usize>)> {
+/// Opens dataset `name` and checks that the rows it declares are stored (see
+/// [`VALUES_PER_STORED_BYTE`]).
+fn checked_dataset(file: &hdf5::File, path: &Path, name: &str) -> Result<hdf5::Dataset> {
     let ds = file
         .dataset(name)
         .map_err(|e| anyhow!("{}: no dataset `{name}`: {e}", path.display()))?;
@@ -83,6 +84,36 @@ fn dataset(file: &hdf5::File, path: &Path, name: &str) -> Result<(Vec<f64>, Vec<
             path.display()
         );
     }
+    check_chunks(&ds, path, name, &shape)?;
+    Ok(ds)
+}
+
+/// Refuses a chunked dataset with data but chunks missing from the file (never written, or
+/// lost to a corrupted chunk index): the library would read them as the fill value, zeros that
+/// pass for data. A dataset with no chunk at all is left to read as its fill value.
+fn check_chunks(ds: &hdf5::Dataset, path: &Path, name: &str, shape: &[usize]) -> Result<()> {
+    let (Some(chunk), Some(stored)) = (ds.chunk(), ds.num_chunks()) else {
+        return Ok(());
+    };
+    let expected = shape
+        .iter()
+        .zip(&chunk)
+        .try_fold(1usize, |n, (&d, &c)| n.checked_mul(d.div_ceil(c.max(1))));
+    if let Some(expected) = expected {
+        if stored > 0 && stored < expected {
+            bail!(
+                "{}: dataset `{name}` stores {stored} of its {expected} chunks: the others would read as zeros (incomplete or corrupt file)",
+                path.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Reads dataset `name` as f64 with its shape.
+fn dataset(file: &hdf5::File, path: &Path, name: &str) -> Result<(Vec<f64>, Vec<usize>)> {
+    let ds = checked_dataset(file, path, name)?;
+    let shape = ds.shape();
     let data = ds
         .read_raw::<f64>()
         .map_err(|e| anyhow!("{}: cannot read `{name}`: {e}", path.display()))?;
@@ -100,49 +131,95 @@ fn rows(path: &Path, name: &str, shape: &[usize], cols: &[usize]) -> Result<usiz
     }
 }
 
-/// Reads the events of an MVSEC `*_data.hdf5` (and its IMU as gyro when present).
-pub(super) fn read_events(path: &Path) -> Result<Recording> {
-    let file = open(path)?;
-    let name = "davis/left/events";
-    let (data, shape) = dataset(&file, path, name)?;
-    rows(path, name, &shape, &[4])?;
-    let (chunks, _) = data.as_chunks::<4>();
-    let mut events = Vec::with_capacity(chunks.len());
-    for (i, &[x, y, t, p]) in chunks.iter().enumerate() {
-        let ev = (|| {
-            let t_us = seconds_to_us(t)?;
-            let x = pixel(x)?;
-            let y = pixel(y)?;
-            let on = if p > 0.0 {
-                true
-            } else if p == -1.0 || p == 0.0 {
-                false
-            } else {
-                return None;
-            };
-            Some(HostEvent { t_us, x, y, on })
-        })();
-        match ev {
-            Some(e) => events.push(e),
-            None => bail!(
-                "{}: malformed event {i} in `{name}`: [{x}, {y}, {t}, {p}]",
-                path.display()
-            ),
+/// Rows of `davis/left/events` read at a time (2 MiB of `f64`).
+const ROWS_PER_READ: usize = 1 << 16;
+
+/// The events of an MVSEC `*_data.hdf5`, read a slice of rows at a time.
+pub struct MvsecEvents {
+    file: hdf5::File,
+    ds: hdf5::Dataset,
+    path: std::path::PathBuf,
+    rows: usize,
+    next: usize,
+}
+
+const EVENTS: &str = "davis/left/events";
+
+impl MvsecEvents {
+    /// Opens the file and checks the events dataset's shape and storage.
+    ///
+    /// # Errors
+    /// When the file is not a readable HDF5 file or the dataset is missing or malformed.
+    pub fn open(path: &Path) -> Result<Self> {
+        let file = open(path)?;
+        let ds = checked_dataset(&file, path, EVENTS)?;
+        let rows = rows(path, EVENTS, &ds.shape(), &[4])?;
+        Ok(Self {
+            file,
+            ds,
+            path: path.to_path_buf(),
+            rows,
+            next: 0,
+        })
+    }
+
+    /// Appends the events of the next rows to `out`; returns `false` after the last row.
+    ///
+    /// # Errors
+    /// When the rows cannot be read or an event is malformed.
+    pub fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
+        if self.next >= self.rows {
+            return Ok(false);
+        }
+        let end = (self.next + ROWS_PER_READ).min(self.rows);
+        let p = self.path.display();
+        let block = self
+            .ds
+            .read_slice_2d::<f64, _>((self.next..end, ..))
+            .map_err(|e| anyhow!("{p}: cannot read `{EVENTS}`: {e}"))?;
+        let data = block
+            .as_slice()
+            .ok_or_else(|| anyhow!("{p}: cannot read `{EVENTS}`: rows not contiguous"))?;
+        let (chunks, _) = data.as_chunks::<4>();
+        for (k, &[x, y, t, pol]) in chunks.iter().enumerate() {
+            match event(x, y, t, pol) {
+                Some(e) => out.push(e),
+                None => bail!(
+                    "{p}: malformed event {} in `{EVENTS}`: [{x}, {y}, {t}, {pol}]",
+                    self.next + k
+                ),
+            }
+        }
+        self.next = end;
+        Ok(true)
+    }
+
+    /// The file's IMU as gyro samples, when it has one.
+    ///
+    /// # Errors
+    /// When the IMU datasets are malformed.
+    pub fn gyro(&self) -> Result<Option<Vec<GyroSample>>> {
+        if self.file.link_exists("davis/left/imu") {
+            Ok(Some(gyro_of(&self.file, &self.path)?))
+        } else {
+            Ok(None)
         }
     }
-    let gyro = if file.link_exists("davis/left/imu") {
-        Some(gyro_of(&file, path)?)
+}
+
+/// One event row `[x, y, t_s, p]`.
+fn event(x: f64, y: f64, t: f64, p: f64) -> Option<HostEvent> {
+    let t_us = seconds_to_us(t)?;
+    let x = pixel(x)?;
+    let y = pixel(y)?;
+    let on = if p > 0.0 {
+        true
+    } else if p == -1.0 || p == 0.0 {
+        false
     } else {
-        None
+        return None;
     };
-    Ok(Recording {
-        events,
-        width: None,
-        height: None,
-        intrinsics: None,
-        gyro,
-        format: Format::MvsecHdf5,
-    })
+    Some(HostEvent { t_us, x, y, on })
 }
 
 /// A pixel coordinate stored as a float: a non-negative integer below 65536.

@@ -15,7 +15,7 @@
 //! The header ends at `% end` or at the first line that does not start with `%`.
 
 use std::fs::File;
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
@@ -157,60 +157,208 @@ pub fn parse_header(bytes: &[u8]) -> RawHeader {
     h
 }
 
-/// Read size for streaming decode (bytes).
-const CHUNK: usize = 1 << 20;
+/// Most header bytes read before the data (a header without `% end` in them is an error).
+const HEADER_MAX: usize = 1 << 20;
+/// Bytes decoded at a time: at most 12 events per 2-byte word (EVT 3.0 vectors), so a chunk
+/// holds at most ~800 k events (12 MB).
+const CHUNK: usize = 128 * 1024;
 
-/// Reads a `.raw` file as `format` (which overrides the header's format) and returns the
-/// decoder's counters too (skipped triggers, OTHERS/CONTINUED words, time wraps). Sensor size
-/// comes from the header; intrinsics and gyro are left to the caller.
-///
-/// # Errors
-/// When the file cannot be read, or the stream is truncated or malformed (undefined word types,
-/// no TIME_HIGH): the message names the file and the byte offset.
-pub fn read_raw(path: &Path, format: Format) -> Result<(Recording, DecodeStats)> {
-    let mut file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
-    let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let mut buf = vec![0u8; CHUNK];
-    let first = super::read_up_to(&mut file, &mut buf)
-        .with_context(|| format!("cannot read {}", path.display()))?;
-    let header = if buf.first() == Some(&b'%') && first > 0 {
-        let h = parse_header(buf.get(..first).unwrap_or_default());
-        if !h.complete && first == CHUNK {
-            bail!(
-                "{}: Prophesee header longer than {CHUNK} bytes (no `% end`)",
+/// The decoder of each word format.
+enum Decoder {
+    Evt3(Evt3Decoder),
+    Evt2(Evt2Decoder),
+    Evt21(Evt21Decoder),
+}
+
+impl Decoder {
+    fn push<F: FnMut(core_nostd::event::Event64)>(&mut self, bytes: &[u8], sink: F) {
+        match self {
+            Self::Evt3(d) => d.push64(bytes, sink),
+            Self::Evt2(d) => d.push64(bytes, sink),
+            Self::Evt21(d) => d.push64(bytes, sink),
+        }
+    }
+    fn finish(&self) -> Result<(), core_nostd::evt::Truncated> {
+        match self {
+            Self::Evt3(d) => d.finish(),
+            Self::Evt2(d) => d.finish(),
+            Self::Evt21(d) => d.finish(),
+        }
+    }
+    fn stats(&self) -> DecodeStats {
+        match self {
+            Self::Evt3(d) => d.stats(),
+            Self::Evt2(d) => d.stats(),
+            Self::Evt21(d) => d.stats(),
+        }
+    }
+    fn bytes_pushed(&self) -> u64 {
+        match self {
+            Self::Evt3(d) => d.bytes_pushed(),
+            Self::Evt2(d) => d.bytes_pushed(),
+            Self::Evt21(d) => d.bytes_pushed(),
+        }
+    }
+}
+
+/// The events of a `.raw` stream, decoded a chunk at a time (memory: the first MiB, which holds
+/// the header, plus one chunk).
+pub struct RawEvents<R> {
+    r: R,
+    path: std::path::PathBuf,
+    format: Format,
+    dec: Decoder,
+    /// Data bytes read with the header, not yet decoded (from `head_pos`).
+    head: Vec<u8>,
+    head_pos: usize,
+    data_start: usize,
+    time_offset_us: u64,
+    buf: Vec<u8>,
+    done: bool,
+}
+
+impl<R: Read> RawEvents<R> {
+    /// Reads the header from `r` (the content of `path`) and prepares to decode the data as
+    /// `format` (which overrides the header's format).
+    ///
+    /// # Errors
+    /// When the stream cannot be read or its header does not end within the first MiB.
+    pub fn open(mut r: R, path: &Path, format: Format) -> Result<(Self, RawHeader)> {
+        let mut buf = vec![0u8; HEADER_MAX];
+        let first = super::read_up_to(&mut r, &mut buf)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        buf.truncate(first);
+        let header = if buf.first() == Some(&b'%') {
+            let h = parse_header(&buf);
+            if !h.complete && first == HEADER_MAX {
+                bail!(
+                    "{}: Prophesee header longer than {HEADER_MAX} bytes (no `% end`)",
+                    path.display()
+                );
+            }
+            h
+        } else {
+            RawHeader {
+                complete: true,
+                ..RawHeader::default()
+            }
+        };
+        let dec = match format {
+            Format::Evt3 => Decoder::Evt3(Evt3Decoder::new()),
+            Format::Evt2 => Decoder::Evt2(Evt2Decoder::new()),
+            Format::Evt21 if header.evt21_legacy => Decoder::Evt21(Evt21Decoder::legacy()),
+            Format::Evt21 => Decoder::Evt21(Evt21Decoder::new()),
+            _ => bail!(
+                "{}: {format} is not a Prophesee word format",
                 path.display()
+            ),
+        };
+        let data_start = header.data_offset.min(buf.len());
+        let this = Self {
+            r,
+            path: path.to_path_buf(),
+            format,
+            dec,
+            head: buf,
+            head_pos: data_start,
+            data_start,
+            time_offset_us: header.time_offset_us,
+            buf: Vec::new(),
+            done: false,
+        };
+        Ok((this, header))
+    }
+
+    /// Appends the events of the next chunk of data to `out`; returns `false` at the end of the
+    /// data (after checking that the stream ended cleanly).
+    ///
+    /// # Errors
+    /// When the file cannot be read, or the stream is truncated or malformed (undefined word
+    /// types, no TIME_HIGH): the message names the file and the byte offset.
+    pub fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
+        if self.done {
+            return Ok(false);
+        }
+        let offset = self.time_offset_us;
+        let mut sink = |e: core_nostd::event::Event64| {
+            out.push(HostEvent {
+                t_us: e.t_us.wrapping_add(offset),
+                x: e.x,
+                y: e.y,
+                on: e.on,
+            });
+        };
+        if self.head_pos < self.head.len() {
+            let end = (self.head_pos + CHUNK).min(self.head.len());
+            self.dec.push(
+                self.head.get(self.head_pos..end).unwrap_or_default(),
+                &mut sink,
+            );
+            self.head_pos = end;
+            if end == self.head.len() {
+                self.head = Vec::new();
+                self.head_pos = 0;
+            }
+        } else {
+            self.buf.resize(CHUNK, 0);
+            let n = super::read_up_to(&mut self.r, &mut self.buf)
+                .with_context(|| format!("cannot read {}", self.path.display()))?;
+            if n == 0 {
+                self.done = true;
+                self.check_end()?;
+                return Ok(false);
+            }
+            self.dec
+                .push(self.buf.get(..n).unwrap_or_default(), &mut sink);
+        }
+        let stats = self.dec.stats();
+        if let Some(o) = stats.first_invalid_at {
+            bail!(
+                "{}: malformed {} stream: word of an undefined type at byte {} (wrong format?)",
+                self.path.display(),
+                self.format,
+                o + self.data_start as u64
             );
         }
-        h
-    } else {
-        RawHeader {
-            complete: true,
-            ..RawHeader::default()
+        Ok(true)
+    }
+
+    /// The decoder's counters so far (skipped triggers, OTHERS/CONTINUED words, time wraps).
+    pub fn stats(&self) -> DecodeStats {
+        self.dec.stats()
+    }
+
+    fn check_end(&self) -> Result<()> {
+        let (path, format, data_start) = (self.path.display(), self.format, self.data_start);
+        if let Err(t) = self.dec.finish() {
+            bail!(
+                "{path}: truncated {format} stream at byte {} ({} of {} bytes of the last word)",
+                t.offset + data_start as u64,
+                t.have,
+                t.word_bytes
+            );
         }
-    };
-    let data_start = header.data_offset;
-    let mut events = Vec::with_capacity((file_len.saturating_sub(data_start as u64) / 3) as usize);
-    let offset = header.time_offset_us;
-    let head_data = buf.get(data_start..first).unwrap_or_default().to_vec();
-    let mut data = DataPart {
-        path,
-        format,
-        file: &mut file,
-        head: &head_data,
-        data_start,
-        time_offset_us: offset,
-        events: &mut events,
-    };
-    let stats = match format {
-        Format::Evt3 => data.decode(Evt3Decoder::new())?,
-        Format::Evt2 => data.decode(Evt2Decoder::new())?,
-        Format::Evt21 if header.evt21_legacy => data.decode(Evt21Decoder::legacy())?,
-        Format::Evt21 => data.decode(Evt21Decoder::new())?,
-        _ => bail!(
-            "{}: {format} is not a Prophesee word format",
-            path.display()
-        ),
-    };
+        if self.dec.bytes_pushed() > 0 && self.dec.stats().time_high == 0 {
+            bail!(
+                "{path}: malformed {format} stream: no TIME_HIGH word in {} bytes of data starting at byte {data_start}",
+                self.dec.bytes_pushed()
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Reads a whole `.raw` file as `format` (which overrides the header's format) and returns the
+/// decoder's counters too. Sensor size comes from the header; intrinsics and gyro are left to
+/// the caller.
+///
+/// # Errors
+/// As [`RawEvents::next_chunk`].
+pub fn read_raw(path: &Path, format: Format) -> Result<(Recording, DecodeStats)> {
+    let file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let (mut raw, header) = RawEvents::open(file, path, format)?;
+    let mut events = Vec::new();
+    while raw.next_chunk(&mut events)? {}
     let rec = Recording {
         events,
         width: header.width,
@@ -219,83 +367,126 @@ pub fn read_raw(path: &Path, format: Format) -> Result<(Recording, DecodeStats)>
         gyro: None,
         format,
     };
-    Ok((rec, stats))
+    Ok((rec, raw.stats()))
 }
 
-/// The data part of a `.raw` file: its first bytes (read with the header), the rest of the
-/// file, and where the decoded events go.
-struct DataPart<'a> {
-    path: &'a Path,
-    format: Format,
-    file: &'a mut File,
-    /// Data bytes already read with the header.
-    head: &'a [u8],
-    /// File offset of the first data byte.
-    data_start: usize,
-    /// Added to every event time (µs).
-    time_offset_us: u64,
-    events: &'a mut Vec<HostEvent>,
+/// Largest step between consecutive event times that [`Evt3Writer`] encodes (2^40 µs, 12.7
+/// days): EVT 3.0 spells a gap out as two TIME_HIGH words per 2^24 µs, so this caps one gap at
+/// 256 KiB of output.
+pub const MAX_EVT3_GAP_US: u64 = 1 << 40;
+
+/// Writes events as Prophesee EVT 3.0 to a byte stream, as they come: the header (`evt 3.0`,
+/// `format EVT3;height=H;width=W`, `geometry WxH`, and `tde_time_offset_us` when the first event
+/// is at or after 2^24 µs), then the words.
+pub struct Evt3Writer<'w, W: Write> {
+    w: &'w mut W,
+    out: &'w Path,
+    width: u16,
+    height: u16,
+    enc: Option<Evt3Encoder>,
+    bytes: Vec<u8>,
+    index: u64,
+    last_t: u64,
 }
 
-impl DataPart<'_> {
-    /// Streams the data through `dec` into `events`.
-    fn decode<D: StreamDecoder>(&mut self, mut dec: D) -> Result<DecodeStats> {
-        let (path, format, data_start) = (self.path, self.format, self.data_start);
-        let time_offset_us = self.time_offset_us;
-        let events = &mut *self.events;
-        let mut sink = |e: core_nostd::event::Event64| {
-            events.push(HostEvent {
-                t_us: e.t_us.wrapping_add(time_offset_us),
-                x: e.x,
-                y: e.y,
-                on: e.on,
-            });
-        };
-        dec.push64(self.head, &mut sink);
-        let mut buf = vec![0u8; CHUNK];
-        loop {
-            let n = super::read_up_to(self.file, &mut buf)
-                .with_context(|| format!("cannot read {}", path.display()))?;
-            if n == 0 {
-                break;
+impl<'w, W: Write> Evt3Writer<'w, W> {
+    /// A writer of a `width` x `height` recording into `w` (the content of `out`).
+    pub fn new(w: &'w mut W, out: &'w Path, width: u16, height: u16) -> Self {
+        Self {
+            w,
+            out,
+            width,
+            height,
+            enc: None,
+            bytes: Vec::with_capacity(64 * 1024 + 16),
+            index: 0,
+            last_t: 0,
+        }
+    }
+
+    fn start(&mut self, first_t: u64) -> Result<Evt3Encoder> {
+        let (w, h) = (self.width, self.height);
+        let origin = Evt3Encoder::time_origin(first_t);
+        let mut head =
+            format!("% evt 3.0\n% format EVT3;height={h};width={w}\n% geometry {w}x{h}\n");
+        if origin != 0 {
+            head.push_str(&format!("% tde_time_offset_us {origin}\n"));
+        }
+        head.push_str("% end\n");
+        self.w
+            .write_all(head.as_bytes())
+            .with_context(|| format!("cannot write {}", self.out.display()))?;
+        Ok(Evt3Encoder::new())
+    }
+
+    /// Encodes the events (in non-decreasing time order, x and y < 2048).
+    ///
+    /// # Errors
+    /// When an event cannot be encoded (the message names its index) or the file cannot be
+    /// written.
+    pub fn push(&mut self, events: &[HostEvent]) -> Result<()> {
+        for e in events {
+            let i = self.index;
+            let mut enc = match self.enc.take() {
+                Some(enc) => enc,
+                None => {
+                    self.last_t = e.t_us;
+                    self.start(e.t_us)?
+                }
+            };
+            let gap = e.t_us.saturating_sub(self.last_t);
+            if gap > MAX_EVT3_GAP_US {
+                bail!(
+                    "event {i} at t = {} µs comes {gap} µs after the previous one: EVT 3.0 spells a gap out word by word, and gaps over {MAX_EVT3_GAP_US} µs (12.7 days) are refused",
+                    e.t_us
+                );
             }
-            dec.push64(buf.get(..n).unwrap_or_default(), &mut sink);
+            let bytes = &mut self.bytes;
+            let pushed = enc.push((*e).into(), |wd| bytes.extend_from_slice(&wd.to_le_bytes()));
+            self.enc = Some(enc);
+            pushed.map_err(|err| match err {
+                EncodeError::TimeBackwards { t_us, previous_us } => anyhow::anyhow!(
+                    "event {i} at t = {t_us} µs is earlier than the previous event ({previous_us} µs): EVT 3.0 needs events in time order"
+                ),
+                EncodeError::AddressOutOfRange { x, y } => {
+                    anyhow::anyhow!("event {i} at ({x}, {y}) does not fit EVT 3.0's 11-bit addresses")
+                }
+            })?;
+            self.last_t = e.t_us;
+            self.index += 1;
+            if self.bytes.len() >= 64 * 1024 {
+                self.flush_bytes()?;
+            }
         }
-        let stats = dec.stats();
-        let at = |o: u64| o + data_start as u64;
-        if let Err(t) = dec.finish() {
-            bail!(
-                "{}: truncated {format} stream at byte {} ({} of {} bytes of the last word)",
-                path.display(),
-                at(t.offset),
-                t.have,
-                t.word_bytes
-            );
-        }
-        if let Some(o) = stats.first_invalid_at {
-            bail!(
-                "{}: malformed {format} stream: word of an undefined type at byte {} ({} such words; wrong format?)",
-                path.display(),
-                at(o),
-                stats.invalid
-            );
-        }
-        if dec.bytes_pushed() > 0 && stats.time_high == 0 {
-            bail!(
-                "{}: malformed {format} stream: no TIME_HIGH word in {} bytes of data starting at byte {data_start}",
-                path.display(),
-                dec.bytes_pushed()
-            );
-        }
-        Ok(stats)
+        Ok(())
+    }
+
+    fn flush_bytes(&mut self) -> Result<()> {
+        self.w
+            .write_all(&self.bytes)
+            .with_context(|| format!("cannot write {}", self.out.display()))?;
+        self.bytes.clear();
+        Ok(())
+    }
+
+    /// Writes the last run (and the header, for a recording without events).
+    ///
+    /// # Errors
+    /// When the file cannot be written.
+    pub fn finish(mut self) -> Result<()> {
+        let mut enc = match self.enc.take() {
+            Some(enc) => enc,
+            None => self.start(0)?,
+        };
+        let bytes = &mut self.bytes;
+        enc.finish(|wd| bytes.extend_from_slice(&wd.to_le_bytes()));
+        self.flush_bytes()
     }
 }
 
-/// Writes events as a Prophesee EVT 3.0 `.raw` file with a header (`evt 3.0`,
-/// `format EVT3;height=H;width=W`, `geometry WxH`, and `tde_time_offset_us` when the first event
-/// is at or after 2^24 µs). The size is `width`/`height` when given, else the events' extent.
-/// Events must be in non-decreasing time order with x, y < 2048. The file appears complete or not
-/// at all.
+/// Writes events as a Prophesee EVT 3.0 `.raw` file (see [`Evt3Writer`]). The size is
+/// `width`/`height` when given, else the events' extent. The file appears complete or not at
+/// all.
 ///
 /// # Errors
 /// When an event cannot be encoded (the message names its index) or the file cannot be written.
@@ -314,39 +505,10 @@ pub fn write_evt3(
     };
     let w = width.unwrap_or_else(|| extent(|e| e.x));
     let h = height.unwrap_or_else(|| extent(|e| e.y));
-    let origin = events
-        .first()
-        .map_or(0, |e| Evt3Encoder::time_origin(e.t_us));
     crate::output::write_atomically(out, |wr| {
-        let mut head =
-            format!("% evt 3.0\n% format EVT3;height={h};width={w}\n% geometry {w}x{h}\n");
-        if origin != 0 {
-            head.push_str(&format!("% tde_time_offset_us {origin}\n"));
-        }
-        head.push_str("% end\n");
-        wr.write_all(head.as_bytes())
-            .with_context(|| format!("cannot write {}", out.display()))?;
-        let mut enc = Evt3Encoder::new();
-        let mut bytes: Vec<u8> = Vec::with_capacity(64 * 1024 + 16);
-        for (i, e) in events.iter().enumerate() {
-            enc.push((*e).into(), |wd| bytes.extend_from_slice(&wd.to_le_bytes())).map_err(|err| match err {
-                EncodeError::TimeBackwards { t_us, previous_us } => anyhow::anyhow!(
-                    "event {i} at t = {t_us} µs is earlier than the previous event ({previous_us} µs): EVT 3.0 needs events in time order"
-                ),
-                EncodeError::AddressOutOfRange { x, y } => {
-                    anyhow::anyhow!("event {i} at ({x}, {y}) does not fit EVT 3.0's 11-bit addresses")
-                }
-            })?;
-            if bytes.len() >= 64 * 1024 {
-                wr.write_all(&bytes)
-                    .with_context(|| format!("cannot write {}", out.display()))?;
-                bytes.clear();
-            }
-        }
-        enc.finish(|wd| bytes.extend_from_slice(&wd.to_le_bytes()));
-        wr.write_all(&bytes)
-            .with_context(|| format!("cannot write {}", out.display()))?;
-        Ok(())
+        let mut writer = Evt3Writer::new(wr, out, w, h);
+        writer.push(events)?;
+        writer.finish()
     })
 }
 

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use anyhow::{anyhow, Error};
+use anyhow::{anyhow, bail, Error};
 
 use super::HostEvent;
 
@@ -209,55 +209,227 @@ pub enum Separator {
     Whitespace,
 }
 
-/// The event of one line `T X Y P`: exactly four fields, `time` parses `T` to µs.
-fn event_of<'l>(
-    mut f: impl Iterator<Item = &'l [u8]>,
-    time: impl Fn(&[u8]) -> Option<u64>,
-) -> Option<HostEvent> {
-    let t_us = time(f.next()?)?;
-    let x = parse_u16(f.next()?)?;
-    let y = parse_u16(f.next()?)?;
-    let on = parse_polarity(f.next()?)?;
-    f.next().is_none().then_some(HostEvent { t_us, x, y, on })
+/// Longest line an event file may hold (bytes): the reader keeps at most this much of a line in
+/// memory, so a file without line ends is an error, not an unbounded allocation.
+pub const MAX_LINE: usize = 64 * 1024;
+
+/// Bytes read from the file at a time.
+const READ_BYTES: usize = 256 * 1024;
+
+/// Where each of `T X Y P` sits in a line: `order[k]` is the field index of the k-th quantity.
+type Columns = [usize; 4];
+
+/// The columns of a CSV header naming `t_us` (or `t`, `timestamp`), `x`, `y` and `p` (or
+/// `polarity`) in any order, case-insensitive; `None` when the line names anything else.
+fn header_columns(line: &[u8]) -> Option<Columns> {
+    let names: Vec<String> = csv_fields(line)
+        .map(|f| String::from_utf8_lossy(f).to_ascii_lowercase())
+        .collect();
+    if names.len() != 4 {
+        return None;
+    }
+    let find = |aliases: &[&str]| names.iter().position(|n| aliases.contains(&n.as_str()));
+    let cols = [
+        find(&["t_us", "t", "timestamp"])?,
+        find(&["x"])?,
+        find(&["y"])?,
+        find(&["p", "polarity"])?,
+    ];
+    let mut seen = [false; 4];
+    for &c in &cols {
+        *seen.get_mut(c)? = true;
+    }
+    seen.iter().all(|&s| s).then_some(cols)
 }
 
-/// Reads one event per line, `T X Y P` separated by `sep`, with `time` turning `T` into µs
-/// (blank lines and `#` comments skipped; with `header`, a first line starting with a letter
-/// is skipped too). A bad line is an error naming the file, line and byte offset, with
-/// `expected` saying what the line should hold. `bytes_per_event` sizes the first allocation.
-pub fn read_event_lines(
-    path: &Path,
-    sep: Separator,
-    time: impl Fn(&[u8]) -> Option<u64>,
-    header: bool,
-    expected: &str,
-    bytes_per_event: usize,
-) -> anyhow::Result<Vec<HostEvent>> {
-    use anyhow::Context;
-    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut events = Vec::with_capacity(buf.len() / bytes_per_event.max(1));
-    let mut first = true;
-    for (line_no, (off, line)) in Lines::new(&buf).enumerate() {
-        if is_blank_or_comment(line) {
-            continue;
-        }
-        let is_first = std::mem::replace(&mut first, false);
-        let parsed = match sep {
-            Separator::Comma => event_of(csv_fields(line), &time),
-            Separator::Whitespace => event_of(ws_fields(line), &time),
-        };
-        match parsed {
-            Some(e) => events.push(e),
-            None if header && is_first && line.first().is_some_and(u8::is_ascii_alphabetic) => {}
-            None => return Err(line_error(path, &buf, off, line_no + 1, line, expected)),
+/// The event of one line: exactly four fields, in the order `cols` gives; `time` parses the
+/// time field to µs.
+fn event_of<'l>(
+    f: impl Iterator<Item = &'l [u8]>,
+    cols: &Columns,
+    time: fn(&[u8]) -> Option<u64>,
+) -> Option<HostEvent> {
+    let mut fields: [&[u8]; 4] = [&[]; 4];
+    let mut n = 0;
+    for field in f {
+        *fields.get_mut(n)? = field;
+        n += 1;
+    }
+    if n != 4 {
+        return None;
+    }
+    let [ct, cx, cy, cp] = *cols;
+    let t_us = time(fields.get(ct)?)?;
+    let x = parse_u16(fields.get(cx)?)?;
+    let y = parse_u16(fields.get(cy)?)?;
+    let on = parse_polarity(fields.get(cp)?)?;
+    Some(HostEvent { t_us, x, y, on })
+}
+
+/// What an event-line file looks like: the separator, the time parser, whether a CSV header
+/// line may come first, and what a line should hold (for errors).
+#[derive(Clone, Copy, Debug)]
+pub struct LineFormat {
+    /// Field separator.
+    pub sep: Separator,
+    /// Turns the time field into µs.
+    pub time: fn(&[u8]) -> Option<u64>,
+    /// A first line starting with a letter is a header naming the columns (CSV).
+    pub header: bool,
+    /// What a line should hold, for error messages.
+    pub expected: &'static str,
+}
+
+/// Reads one event per line (`T X Y P` in the order of the header, if any; blank lines and `#`
+/// comments skipped) from any byte stream, a chunk at a time, in memory bounded by
+/// [`MAX_LINE`] plus the read buffer. A bad line is an error naming the file, line and byte
+/// offset.
+pub struct EventLines<R> {
+    r: R,
+    path: std::path::PathBuf,
+    fmt: LineFormat,
+    cols: Columns,
+    buf: Vec<u8>,
+    /// Start of the unconsumed bytes in `buf`.
+    pos: usize,
+    /// File offset of `buf[0]`.
+    base: u64,
+    line_no: usize,
+    first: bool,
+    eof: bool,
+}
+
+impl<R: std::io::Read> EventLines<R> {
+    /// A reader of `r` (the content of `path`).
+    pub fn new(r: R, path: &Path, fmt: LineFormat) -> Self {
+        Self {
+            r,
+            path: path.to_path_buf(),
+            fmt,
+            cols: [0, 1, 2, 3],
+            buf: Vec::with_capacity(READ_BYTES + MAX_LINE),
+            pos: 0,
+            base: 0,
+            line_no: 0,
+            first: true,
+            eof: false,
         }
     }
-    Ok(events)
+
+    /// Appends up to `max` events to `out`; returns `false` once the input is exhausted and
+    /// nothing was appended.
+    pub fn next_chunk(&mut self, out: &mut Vec<HostEvent>, max: usize) -> anyhow::Result<bool> {
+        let start_len = out.len();
+        while out.len() - start_len < max {
+            let rest = self.buf.get(self.pos..).unwrap_or_default();
+            let (line, advance, last) = match rest.iter().position(|&b| b == b'\n') {
+                Some(i) => (rest.get(..i).unwrap_or_default(), i + 1, false),
+                None if self.eof => {
+                    if rest.is_empty() {
+                        break;
+                    }
+                    (rest, rest.len(), true)
+                }
+                None => {
+                    self.refill()?;
+                    continue;
+                }
+            };
+            let offset = self.base + self.pos as u64;
+            self.line_no += 1;
+            let line = line.strip_suffix(b"\r").unwrap_or(line);
+            if !is_blank_or_comment(line) {
+                let is_first = std::mem::replace(&mut self.first, false);
+                let parsed = match self.fmt.sep {
+                    Separator::Comma => event_of(csv_fields(line), &self.cols, self.fmt.time),
+                    Separator::Whitespace => event_of(ws_fields(line), &self.cols, self.fmt.time),
+                };
+                match parsed {
+                    Some(e) => out.push(e),
+                    None if self.fmt.header
+                        && is_first
+                        && line.first().is_some_and(u8::is_ascii_alphabetic) =>
+                    {
+                        self.cols = header_columns(line).ok_or_else(|| {
+                            let shown: String =
+                                String::from_utf8_lossy(line).chars().take(60).collect();
+                            anyhow!(
+                                "{}: malformed header line {} at byte {offset}: expected the four columns t_us, x, y, p (in any order), found `{shown}`",
+                                self.path.display(),
+                                self.line_no
+                            )
+                        })?;
+                    }
+                    None => {
+                        return Err(line_error(
+                            &self.path,
+                            offset,
+                            self.line_no,
+                            line,
+                            self.fmt.expected,
+                            last,
+                        ))
+                    }
+                }
+            }
+            self.pos += advance;
+        }
+        Ok(out.len() > start_len)
+    }
+
+    /// Drops the consumed bytes and reads more; errors on a line longer than [`MAX_LINE`].
+    fn refill(&mut self) -> anyhow::Result<()> {
+        use anyhow::Context;
+        self.buf.drain(..self.pos);
+        self.base += self.pos as u64;
+        self.pos = 0;
+        if self.buf.len() > MAX_LINE {
+            bail!(
+                "{}: line {} at byte {} is longer than {MAX_LINE} bytes (not a text event file?)",
+                self.path.display(),
+                self.line_no + 1,
+                self.base
+            );
+        }
+        let have = self.buf.len();
+        self.buf.resize(have + READ_BYTES, 0);
+        let n = super::read_up_to(&mut self.r, self.buf.get_mut(have..).unwrap_or_default())
+            .with_context(|| format!("cannot read {}", self.path.display()));
+        let n = match n {
+            Ok(n) => n,
+            Err(e) => {
+                self.buf.truncate(have);
+                return Err(e);
+            }
+        };
+        self.buf.truncate(have + n);
+        if n == 0 {
+            self.eof = true;
+        }
+        Ok(())
+    }
 }
 
 /// Error for a malformed line: names the file, the line number (1-based) and its byte offset;
-/// a last line without its newline is reported as truncated.
+/// `last` (the file's last line, without its newline) is reported as truncated.
 pub fn line_error(
+    path: &Path,
+    offset: u64,
+    line_no: usize,
+    line: &[u8],
+    expected: &str,
+    last: bool,
+) -> Error {
+    let shown: String = String::from_utf8_lossy(line).chars().take(60).collect();
+    let what = if last { "truncated" } else { "malformed" };
+    anyhow!(
+        "{}: {what} line {line_no} at byte {offset}: expected {expected}, found `{shown}`",
+        path.display()
+    )
+}
+
+/// [`line_error`] for a line of a file read whole into `buf`.
+pub fn buf_line_error(
     path: &Path,
     buf: &[u8],
     offset: usize,
@@ -265,13 +437,8 @@ pub fn line_error(
     line: &[u8],
     expected: &str,
 ) -> Error {
-    let shown: String = String::from_utf8_lossy(line).chars().take(60).collect();
     let last = offset.saturating_add(line.len()) >= buf.len() && !buf.ends_with(b"\n");
-    let what = if last { "truncated" } else { "malformed" };
-    anyhow!(
-        "{}: {what} line {line_no} at byte {offset}: expected {expected}, found `{shown}`",
-        path.display()
-    )
+    line_error(path, offset as u64, line_no, line, expected, last)
 }
 
 #[cfg(test)]
