@@ -153,6 +153,9 @@ pub struct Args {
     /// Principal point column in px (default: from the recording, else the sensor centre).
     #[arg(long)]
     pub cx: Option<f64>,
+    /// Principal point row in px (default: from the recording, else the sensor centre).
+    #[arg(long)]
+    pub cy: Option<f64>,
     /// Sensor width in px (default: from the recording).
     #[arg(long, requires = "height")]
     pub width: Option<u16>,
@@ -166,7 +169,7 @@ pub struct Args {
 }
 
 /// Writes the stream and prints one line on stdout:
-/// `events=N t0_us=T width=W height=H focal_bits=F cx_bits=C` (intrinsics as U16F16 bits, the
+/// `events=N t0_us=T width=W height=H focal_bits=F cx_bits=C cy_bits=D` (intrinsics as U16F16 bits, the
 /// values `host-sim run` would use; `focal_bits=0` when the focal length is unknown).
 ///
 /// # Errors
@@ -181,10 +184,12 @@ pub fn run(args: Args) -> Result<()> {
         height: h,
         focal,
         cx,
+        cy,
     } = crate::commands::run::Camera::resolve(
         args.width.zip(args.height),
         args.focal_px,
         args.cx,
+        args.cy,
         &rec,
     )?;
     let enc = encode_aer_timed(&rec.events)
@@ -203,10 +208,11 @@ pub fn run(args: Args) -> Result<()> {
     let t0 = enc.t0_us;
     let bits = |v: f64| U16F16::saturating_from_num(v).to_bits();
     println!(
-        "events={} t0_us={t0} width={w} height={h} focal_bits={} cx_bits={}",
+        "events={} t0_us={t0} width={w} height={h} focal_bits={} cx_bits={} cy_bits={}",
         rec.events.len(),
         focal.map_or(0, bits),
-        bits(cx)
+        bits(cx),
+        bits(cy)
     );
     Ok(())
 }

@@ -76,7 +76,7 @@ pub struct Args {
     /// Principal point column in px (default: from the recording, else the sensor centre).
     #[arg(long)]
     pub cx: Option<f64>,
-    /// Principal point row in px (kept for completeness; yaw does not use it).
+    /// Principal point row in px (default: from the recording, else the sensor centre).
     #[arg(long)]
     pub cy: Option<f64>,
     /// Sensor width in px (default: from the recording).
@@ -126,6 +126,8 @@ pub struct Camera {
     pub focal: Option<f64>,
     /// Principal point column (px).
     pub cx: f64,
+    /// Principal point row (px).
+    pub cy: f64,
 }
 
 impl Camera {
@@ -134,6 +136,7 @@ impl Camera {
         size: Option<(u16, u16)>,
         focal_px: Option<f64>,
         cx: Option<f64>,
+        cy: Option<f64>,
         rec: &formats::Recording,
     ) -> Result<Self> {
         let (width, height) = match size {
@@ -148,11 +151,15 @@ impl Camera {
         let cx = cx
             .or(rec.intrinsics.map(|i| i.cx))
             .unwrap_or((f64::from(width) - 1.0) / 2.0);
+        let cy = cy
+            .or(rec.intrinsics.map(|i| i.cy))
+            .unwrap_or((f64::from(height) - 1.0) / 2.0);
         Ok(Self {
             width,
             height,
             focal,
             cx,
+            cy,
         })
     }
 }
@@ -192,7 +199,15 @@ pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> 
         height: h,
         focal,
         cx,
-    } = Camera::resolve(args.width.zip(args.height), args.focal_px, args.cx, rec)?;
+        cy,
+    } = Camera::resolve(
+        args.width.zip(args.height),
+        args.focal_px,
+        args.cx,
+        args.cy,
+        rec,
+    )?;
+    let centre = (cx, cy);
     let tau_a_us = match args.tau_a_ms {
         Some(ms) if ms > 0.0 && ms <= 1000.0 => Some((ms * 1000.0).round() as u32),
         Some(ms) => bail!("--tau-a-ms must be in (0, 1000] (got {ms})"),
@@ -204,10 +219,10 @@ pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> 
             let layout = Dense::new(w, h, args.stride)
                 .with_context(|| format!("stride {} does not fit a {w}x{h} sensor", args.stride))?;
             match args.model {
-                Model::Fixed => {
-                    run_on_layout(args, rec, &kernel, layout, focal, cx, period_us, tau_a_us)
-                }
-                Model::Float => run_float(args, rec, layout, focal, cx, period_us, tau_a_us),
+                Model::Fixed => run_on_layout(
+                    args, rec, &kernel, layout, focal, centre, period_us, tau_a_us,
+                ),
+                Model::Float => run_float(args, rec, layout, focal, centre, period_us, tau_a_us),
             }
         }
         LayoutKind::PaperBoxes => {
@@ -219,10 +234,10 @@ pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> 
                     )
                 })?;
             match args.model {
-                Model::Fixed => {
-                    run_on_layout(args, rec, &kernel, layout, focal, cx, period_us, tau_a_us)
-                }
-                Model::Float => run_float(args, rec, layout, focal, cx, period_us, tau_a_us),
+                Model::Fixed => run_on_layout(
+                    args, rec, &kernel, layout, focal, centre, period_us, tau_a_us,
+                ),
+                Model::Float => run_float(args, rec, layout, focal, centre, period_us, tau_a_us),
             }
         }
     }
@@ -235,7 +250,7 @@ fn run_float<L: Layout>(
     rec: &formats::Recording,
     layout: L,
     focal: Option<f64>,
-    cx: f64,
+    (cx, cy): (f64, f64),
     period_us: u32,
     tau_a_us: Option<u32>,
 ) -> Result<RunOutput> {
@@ -256,7 +271,7 @@ fn run_float<L: Layout>(
                 p,
                 layout,
                 f,
-                cx,
+                (cx, cy),
                 period,
                 f64::from(ONSET_GAP_US),
                 f64::from(tau),
@@ -271,7 +286,7 @@ fn run_float<L: Layout>(
             y.finish(last, &mut out);
             let samples = out
                 .iter()
-                .map(|&(t, v, stale)| ((t0 as f64 + t) * 1e-6, v, u8::from(stale)))
+                .map(|&(t, v, flags)| ((t0 as f64 + t) * 1e-6, v, flags))
                 .collect();
             (samples, y.samples, 0)
         }
@@ -341,7 +356,7 @@ fn run_on_layout<L: Layout>(
     kernel: &Kernel,
     layout: L,
     focal: Option<f64>,
-    cx: f64,
+    (cx, cy): (f64, f64),
     period_us: u32,
     tau_a_us: Option<u32>,
 ) -> Result<RunOutput> {
@@ -354,6 +369,7 @@ fn run_on_layout<L: Layout>(
                 ..Calibration::for_units(
                     U16F16::saturating_from_num(f),
                     U16F16::saturating_from_num(cx),
+                    U16F16::saturating_from_num(cy),
                     layout.unit_count(),
                 )
             };
