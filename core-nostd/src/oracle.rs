@@ -740,10 +740,10 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         for &(x, w) in &values {
             acc += w;
             if 2.0 * acc >= total {
-                return Some(x);
+                return Some(x.clamp(-20.0, 20.0));
             }
         }
-        values.last().map(|v| v.0)
+        values.last().map(|v| v.0.clamp(-20.0, 20.0))
     }
 
     /// Intercept at `Y = 0` of the weighted least-squares fit `r = w + a Y (above) + b Y

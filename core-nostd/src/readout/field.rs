@@ -452,7 +452,9 @@ impl Field {
                 break;
             }
         }
-        FieldEstimate::Rotation(m.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32)
+        // The fits extrapolate to Y = 0; nothing outside the histograms' range is measured.
+        let max = i64::from(exp2_q16(LOG2_HI));
+        FieldEstimate::Rotation(m.clamp(-max, max) as i32)
     }
 
     /// The rate at the principal row (`Y = 0`) of one column band on one side, and its
