@@ -28,9 +28,25 @@
 use fixed::types::U1F31;
 
 use crate::event::Event;
+use crate::exp_table::{scale_q31, ExpDecay};
 use crate::layout::{Dir, Layout};
-use crate::params::Trace;
+use crate::params::{Trace, TAU_SLOW_US};
 use crate::unit::{elapsed_us, Kernel, UnitState};
+
+/// With the onset filter, a same-polarity event starts a new edge for the slow units only when
+/// their last onset at the pixel is older than this (µs): a slow edge takes this long to pass a
+/// pixel and leaves several same-polarity events on the way, which a shorter onset gap would
+/// count as new edges.
+pub const SLOW_ONSET_GAP_US: u32 = 250_000;
+
+/// Decay table of the slow units' FAC traces (computed at compile time, in flash).
+static SLOW_DECAY: ExpDecay = ExpDecay::new(TAU_SLOW_US);
+
+/// A slow FAC trace decayed over `dt` µs.
+#[inline]
+fn decay_slow(i: Trace, dt_us: u32) -> Trace {
+    Trace::from_bits(scale_q31(i.to_bits(), SLOW_DECAY.decay_bits(dt_us)))
+}
 
 /// Membrane word: top bit set = refractory (remaining µs in bits 30..16, lag in 15..0).
 const REFRACTORY: u32 = 1 << 31;
@@ -38,7 +54,7 @@ const REFRACTORY: u32 = 1 << 31;
 /// Stored FAC trace: top bit = polarity of the pixel's last event (1 = ON).
 const POLARITY: u32 = 1 << 31;
 
-/// A pixel's FAC trace and clock. 8 bytes.
+/// A pixel's FAC traces and clock. 12 bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[repr(C)]
 pub struct Cell {
@@ -46,6 +62,9 @@ pub struct Cell {
     t_us: u32,
     /// FAC trace ([`Trace`] bits) and, in the top bit, the last polarity.
     i_fac: u32,
+    /// FAC trace of the slow units (time constant [`TAU_SLOW_US`], [`Trace`] bits); kept only
+    /// for sinks that ask for it ([`NetSink::SLOW`]), else 0.
+    i_slow: u32,
 }
 
 /// The two units a pixel triggers (left-to-right, right-to-left). 16 bytes.
@@ -73,12 +92,21 @@ impl UnitPair {
 
 impl Cell {
     /// A cell at rest (for static arrays).
-    pub const DEFAULT: Self = Self { t_us: 0, i_fac: 0 };
+    pub const DEFAULT: Self = Self {
+        t_us: 0,
+        i_fac: 0,
+        i_slow: 0,
+    };
 
-    /// Whether the FAC trace still changes with time.
+    /// Whether a FAC trace still changes with time.
     #[inline]
     fn is_live(&self) -> bool {
-        (self.i_fac & !POLARITY) != 0
+        (self.i_fac & !POLARITY) != 0 || self.i_slow != 0
+    }
+
+    #[inline]
+    fn slow(&self) -> Trace {
+        Trace::from_bits(self.i_slow)
     }
 
     #[inline]
@@ -126,6 +154,12 @@ pub struct Trigger {
     pub drive: [Trace; 2],
     /// The pixel's own FAC trace just after this event.
     pub own_fac: Trace,
+    /// The same for the slow units (FAC time constant [`TAU_SLOW_US`]): drives `w_T · I_S(t⁻)`
+    /// of the pixel's two slow units and its own slow trace after the event. Zero unless the
+    /// sink asks for them ([`NetSink::SLOW`]).
+    pub slow_drive: [Trace; 2],
+    /// The pixel's own slow FAC trace just after this event (see `slow_drive`).
+    pub own_slow: Trace,
 }
 
 /// Where the network's output goes.
@@ -133,6 +167,9 @@ pub trait NetSink {
     /// Whether this sink wants individual spikes. When `false` the network does not run the
     /// units' membrane dynamics at all (their bursts are described by [`Trigger`]s).
     const SPIKES: bool;
+    /// Whether this sink wants the slow units' drives in its [`Trigger`]s. When `false` the
+    /// network keeps no slow traces (they cost three more decays per onset).
+    const SLOW: bool = false;
     /// One triggering event.
     fn trigger(&mut self, _t: &Trigger) {}
     /// One spike (spikes of one unit arrive in time order).
@@ -238,6 +275,9 @@ pub struct Network<'a, L: Layout> {
     filter: InputFilter,
     /// FAC trace level below which the last onset is older than the filter's gap.
     onset_level: Trace,
+    /// Slow FAC trace level below which the last slow onset is older than
+    /// [`SLOW_ONSET_GAP_US`].
+    slow_onset_level: Trace,
     /// Next cell of the round-robin clock refresh.
     refresh: usize,
     stats: NetStats,
@@ -325,6 +365,7 @@ impl<'a, L: Layout> Network<'a, L> {
                 kernel.decay_fac(w, gap_us)
             }
         };
+        let slow_onset_level = decay_slow(kernel.fac_input(Trace::ZERO), SLOW_ONSET_GAP_US);
         Ok(Self {
             kernel,
             layout,
@@ -333,6 +374,7 @@ impl<'a, L: Layout> Network<'a, L> {
             active,
             filter,
             onset_level,
+            slow_onset_level,
             refresh: 0,
             stats: NetStats::default(),
         })
@@ -367,6 +409,15 @@ impl<'a, L: Layout> Network<'a, L> {
         }
     }
 
+    /// Slow FAC trace of cell `c` at time `t` (0 for a missing cell).
+    #[inline]
+    fn slow_at(&self, c: Option<usize>, t: u32) -> Trace {
+        match c.and_then(|c| self.cells.get(c)) {
+            Some(cell) => decay_slow(cell.slow(), elapsed_us(cell.t_us, t)),
+            None => Trace::ZERO,
+        }
+    }
+
     /// Processes one event. Spikes of the units it triggers, up to the event time, come first.
     pub fn event<S: NetSink>(&mut self, ev: Event, sink: &mut S) {
         self.stats.events += 1;
@@ -382,17 +433,22 @@ impl<'a, L: Layout> Network<'a, L> {
         let t = ev.t_us;
         let kernel = self.kernel;
         // The pixel's own FAC trace just before the event (decayed once, used twice).
-        let (own_now, late) = match self.cells.get(c) {
+        let (own_now, own_slow_now, late) = match self.cells.get(c) {
             Some(cell) => {
                 let d = t.wrapping_sub(cell.t_us);
                 let late = d >= 1 << 31 && cell.is_live();
-                (
-                    kernel.decay_fac(cell.fac(), if d >= 1 << 31 { 0 } else { d }),
-                    late,
-                )
+                let d = if d >= 1 << 31 { 0 } else { d };
+                let slow = if S::SLOW {
+                    decay_slow(cell.slow(), d)
+                } else {
+                    Trace::ZERO
+                };
+                (kernel.decay_fac(cell.fac(), d), slow, late)
             }
             None => return,
         };
+        // Whether this event starts a new edge for the slow units too (see `SLOW_ONSET_GAP_US`).
+        let mut slow_onset = true;
         if let InputFilter::Onsets { .. } = self.filter {
             let onset_level = self.onset_level;
             let Some(cell) = self.cells.get_mut(c) else {
@@ -408,6 +464,7 @@ impl<'a, L: Layout> Network<'a, L> {
                 self.stats.filtered += 1;
                 return;
             }
+            slow_onset = was_on != ev.on || own_slow_now < self.slow_onset_level;
         }
         if late {
             self.stats.out_of_order += 1;
@@ -421,11 +478,20 @@ impl<'a, L: Layout> Network<'a, L> {
             Trace::from_bits(prod.min(u64::from(crate::params::TRACE_MAX.to_bits())) as u32)
         };
         let mut fac = [Trace::ZERO; 2];
-        if mask & 1 != 0 {
-            fac[0] = self.fac_at(self.layout.neighbor(ev.x, ev.y, c, -s), t);
-        }
-        if mask & 2 != 0 {
-            fac[1] = self.fac_at(self.layout.neighbor(ev.x, ev.y, c, s), t);
+        let mut slow = [Trace::ZERO; 2];
+        for (slot, dx) in [(0usize, -s), (1, s)] {
+            if mask & (1 << slot) == 0 {
+                continue;
+            }
+            let nb = self.layout.neighbor(ev.x, ev.y, c, dx);
+            if let Some(f) = fac.get_mut(slot) {
+                *f = self.fac_at(nb, t);
+            }
+            if S::SLOW {
+                if let Some(f) = slow.get_mut(slot) {
+                    *f = self.slow_at(nb, t);
+                }
+            }
         }
         if spiking {
             self.advance_cell::<S>(c, t, sink);
@@ -438,13 +504,32 @@ impl<'a, L: Layout> Network<'a, L> {
         }
         let own = kernel.fac_input(if spiking { cell.fac() } else { own_now });
         cell.set_fac(own);
+        let own_slow = if S::SLOW {
+            let now = if spiking { cell.slow() } else { own_slow_now };
+            if slow_onset {
+                let i = kernel.fac_input(now);
+                cell.i_slow = i.to_bits();
+                i
+            } else {
+                cell.i_slow = now.to_bits();
+                // Not a new edge for the slow units: no slow drive, nothing to decode.
+                slow = [Trace::ZERO; 2];
+                Trace::ZERO
+            }
+        } else {
+            Trace::ZERO
+        };
         if mask != 0 {
+            let [lr, rl] = fac;
+            let [slr, srl] = slow;
             sink.trigger(&Trigger {
                 t_us: t,
                 x: ev.x,
                 y: ev.y,
-                drive: [drive_of(fac[0]), drive_of(fac[1])],
+                drive: [drive_of(lr), drive_of(rl)],
                 own_fac: own,
+                slow_drive: [drive_of(slr), drive_of(srl)],
+                own_slow,
             });
         }
         if spiking {
@@ -530,6 +615,9 @@ impl<'a, L: Layout> Network<'a, L> {
         }
         if dt > 0 {
             cell.set_fac(kernel.decay_fac(cell.fac(), dt));
+            if S::SLOW {
+                cell.i_slow = decay_slow(cell.slow(), dt).to_bits();
+            }
             cell.t_us = t;
         }
         may_spike

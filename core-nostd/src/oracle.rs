@@ -397,80 +397,153 @@ impl<L: crate::layout::Layout> OracleNetwork<L> {
     }
 }
 
-/// The calibrated pipeline in f64 (see [`crate::readout::calibrated`] for the method): onset
-/// filter, FAC traces, per-trigger decoding with exact logarithms, leaky histograms over the
-/// same bins, the same aggregation. An independent implementation to check the fixed-point one.
+/// The calibrated pipeline in f64 (see [`crate::readout::calibrated`] and
+/// [`crate::readout::field`] for the method): onset filter, fast and slow FAC traces,
+/// per-trigger decoding with exact logarithms, leaky histograms per region decayed exactly each
+/// period, the same mirrored-pair estimator. An independent implementation to check the
+/// fixed-point one.
 pub struct OracleYaw<L: crate::layout::Layout> {
     p: OracleParams,
     layout: L,
     focal: f64,
     cx: f64,
+    cy: f64,
     /// Histogram time constant and output period (µs).
     tau_a: f64,
     period: f64,
-    alpha: f64,
-    prior: f64,
+    min_samples: f64,
+    spread_floor: f64,
+    support: usize,
     /// Onset gap (µs).
     gap: f64,
-    /// Per cell: FAC trace, its time, last polarity.
-    fac: std::vec::Vec<(f64, f64, bool)>,
-    hist: [[[f64; ORACLE_BINS]; 2]; 2],
+    /// Slow FAC time constant (µs).
+    tau_slow: f64,
+    /// Per cell: FAC trace, slow trace, their time, last polarity.
+    fac: std::vec::Vec<(f64, f64, f64, bool)>,
+    /// Band width and height (px) of the regions.
+    band: (f64, f64),
+    paired_bands: usize,
+    /// `[region][population][sign][bin]` (population 0 = the paper's units, 1 = slow).
+    hist: std::vec::Vec<[[[f64; ORACLE_BINS]; 2]; 2]>,
     next_out: Option<f64>,
+    /// Time of the first output (µs).
+    first_out: f64,
+    /// Decodes per population since the last output, and leaky over `SHORT_TAU_US`.
+    recent: [f64; 2],
+    short: [f64; 2],
     last_event: f64,
     /// Decoded bursts so far.
     pub samples: u64,
 }
 
-const ORACLE_BINS: usize = 64;
+const ORACLE_BINS: usize = crate::readout::field::BINS;
+const COLS: usize = crate::readout::field::COL_BANDS;
+const ROWS: usize = crate::readout::field::ROW_BANDS;
 
 impl<L: crate::layout::Layout> OracleYaw<L> {
-    /// The pipeline with the calibrated readout's defaults (`alpha` 0.3, prior 3), readout time
-    /// constant `tau_a_us`, onset gap `gap_us` and output period `period_us`.
+    /// The pipeline with the calibrated readout's default field settings, principal point
+    /// `(cx, cy)`, readout time constant `tau_a_us`, onset gap `gap_us` and output period
+    /// `period_us`.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         p: OracleParams,
         layout: L,
         focal: f64,
-        cx: f64,
+        (cx, cy): (f64, f64),
         period_us: f64,
         gap_us: f64,
         tau_a_us: f64,
     ) -> Self {
         let n = layout.cell_count();
-        Self {
+        let fs = crate::readout::field::FieldSettings::DEFAULT;
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for c in 0..n {
+            if layout.units(c) != 0 {
+                let (x, y) = layout.pixel(c);
+                x0 = x0.min(f64::from(x));
+                x1 = x1.max(f64::from(x) + 1.0);
+                y0 = y0.min(f64::from(y));
+                y1 = y1.max(f64::from(y) + 1.0);
+            }
+        }
+        let band = (
+            ((cx - x0).max(x1 - cx).max(1.0) / COLS as f64).max(1.0),
+            ((cy - y0).max(y1 - cy).max(1.0) / ROWS as f64).max(1.0),
+        );
+        let mut me = Self {
             p,
             layout,
             focal,
             cx,
+            cy,
             tau_a: tau_a_us,
             period: period_us,
-            alpha: 0.3,
-            prior: 3.0,
+            min_samples: f64::from(fs.min_samples_q16) / 65536.0,
+            spread_floor: f64::from(fs.spread_floor_q16) / 65536.0,
+            support: usize::from(fs.support),
             gap: gap_us,
-            fac: std::vec![(0.0, 0.0, false); n],
-            hist: [[[0.0; ORACLE_BINS]; 2]; 2],
+            tau_slow: f64::from(crate::params::TAU_SLOW_US),
+            fac: std::vec![(0.0, 0.0, 0.0, false); n],
+            band,
+            paired_bands: 0,
+            hist: std::vec![[[[0.0; ORACLE_BINS]; 2]; 2]; 4 * COLS * ROWS],
             next_out: None,
+            first_out: 0.0,
+            recent: [0.0; 2],
+            short: [0.0; 2],
             last_event: 0.0,
             samples: 0,
+        };
+        let mut seen = [[false; COLS]; 2];
+        for c in 0..n {
+            if me.layout.units(c) != 0 {
+                let (x, y) = me.layout.pixel(c);
+                let (side, b, _, _) = me.region(x, y);
+                if let Some(s) = seen.get_mut(side).and_then(|s| s.get_mut(b)) {
+                    *s = true;
+                }
+            }
         }
+        let [l, r] = seen;
+        me.paired_bands = l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count();
+        me
     }
 
-    fn fac_at(&self, c: Option<usize>, t: f64) -> f64 {
-        c.and_then(|c| self.fac.get(c)).map_or(0.0, |&(i, t0, _)| {
-            i * (-(t - t0).max(0.0) / self.p.tau_fac).exp()
-        })
+    /// `(side, column band, vertical side, row band)` of a pixel.
+    fn region(&self, x: u16, y: u16) -> (usize, usize, usize, usize) {
+        let dx = f64::from(x) + 0.5 - self.cx;
+        let dy = f64::from(y) + 0.5 - self.cy;
+        let b = ((dx.abs() / self.band.0) as usize).min(COLS - 1);
+        let r = ((dy.abs() / self.band.1) as usize).min(ROWS - 1);
+        (usize::from(dx >= 0.0), b, usize::from(dy >= 0.0), r)
     }
 
-    /// One event at time `t` (µs); pushes `(t_us, yaw rad/s, stale)` for every output before it.
+    fn traces_at(&self, c: Option<usize>, t: f64) -> (f64, f64) {
+        c.and_then(|c| self.fac.get(c))
+            .map_or((0.0, 0.0), |&(i, s, t0, _)| {
+                let dt = (t - t0).max(0.0);
+                (
+                    i * (-dt / self.p.tau_fac).exp(),
+                    s * (-dt / self.tau_slow).exp(),
+                )
+            })
+    }
+
+    /// One event at time `t` (µs); pushes `(t_us, yaw rad/s, flags)` for every output before
+    /// it (flags as [`crate::readout::flags`]: stale, no evidence).
     pub fn event(
         &mut self,
         t: f64,
         x: u16,
         y: u16,
         on: bool,
-        out: &mut std::vec::Vec<(f64, f64, bool)>,
+        out: &mut std::vec::Vec<(f64, f64, u8)>,
     ) {
         match self.next_out {
-            None => self.next_out = Some(t + self.period),
+            None => {
+                self.next_out = Some(t + self.period);
+                self.first_out = t + self.period;
+            }
             Some(_) => self.emit_until(t, false, out),
         }
         self.last_event = t;
@@ -481,10 +554,10 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let Some(c) = self.layout.cell(x, y) else {
             return;
         };
-        let own_now = self.fac_at(Some(c), t);
-        let was_on = self.fac.get(c).is_some_and(|f| f.2);
+        let (own_now, own_slow_now) = self.traces_at(Some(c), t);
+        let was_on = self.fac.get(c).is_some_and(|f| f.3);
         if let Some(f) = self.fac.get_mut(c) {
-            f.2 = on;
+            f.3 = on;
         }
         if was_on == on && own_now >= self.p.w_fac * (-self.gap / self.p.tau_fac).exp() {
             return;
@@ -496,112 +569,259 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
                 .ok()
                 .and_then(|nx| self.layout.cell(nx, y))
         };
+        let zero = (0.0, 0.0);
         let lr = if mask & 1 != 0 {
-            self.p.w_trg * self.fac_at(nb(-s), t)
+            self.traces_at(nb(-s), t)
         } else {
-            0.0
+            zero
         };
         let rl = if mask & 2 != 0 {
-            self.p.w_trg * self.fac_at(nb(s), t)
+            self.traces_at(nb(s), t)
         } else {
-            0.0
+            zero
         };
+        let slow_onset = was_on != on
+            || own_slow_now
+                < self.p.w_fac
+                    * (-f64::from(crate::network::SLOW_ONSET_GAP_US) / self.tau_slow).exp();
         let own = own_now + self.p.w_fac;
+        let own_slow = own_slow_now + if slow_onset { self.p.w_fac } else { 0.0 };
         if let Some(f) = self.fac.get_mut(c) {
-            *f = (own, t, on);
+            *f = (own, own_slow, t, on);
         }
         if mask == 0 {
             return;
         }
-        let (drive, positive) = if rl > lr { (rl, true) } else { (lr, false) };
         // A burst from rest needs q tau / e >= 1 with q = g I / theta per µs.
         let min_drive = core::f64::consts::E * self.p.theta / (self.p.gain_per_us * self.p.tau_trg);
-        let ratio = drive / (self.p.w_trg * own);
-        if drive < min_drive || !(ratio > 0.0 && ratio < 1.0) {
+        let decode = |lr: f64, rl: f64, own: f64, tau: f64| -> Option<(f64, bool)> {
+            let (drive, lose, positive) = if rl > lr {
+                (self.p.w_trg * rl, self.p.w_trg * lr, true)
+            } else {
+                (self.p.w_trg * lr, self.p.w_trg * rl, false)
+            };
+            if lose > 0.5 * drive {
+                return None;
+            }
+            let ratio = drive / (self.p.w_trg * own);
+            if drive < min_drive || !(ratio > 0.0 && ratio < 1.0) {
+                return None;
+            }
+            Some((-tau * ratio.ln() * 1e-6, positive))
+        };
+        let decoded = decode(lr.0, rl.0, own, self.p.tau_fac)
+            .map(|d| (d, 0))
+            .or_else(|| {
+                if !slow_onset || own_slow >= 8.0 || own >= self.p.w_fac + 0.1 {
+                    None
+                } else {
+                    decode(lr.1, rl.1, own_slow, self.tau_slow).map(|d| (d, 1))
+                }
+            });
+        let Some(((dt_s, positive), pop)) = decoded else {
             return;
-        }
-        let dt_s = -self.p.tau_fac * ratio.ln() * 1e-6;
+        };
         let dx = f64::from(x) - self.cx;
         let g = self.focal + dx * dx / self.focal;
         let w = f64::from(self.layout.stride()) / (dt_s * g);
-        let (lo, hi) = (0.02f64.ln(), 20.0f64.ln());
+        let (lo, hi) = (0.01f64.ln(), 20.0f64.ln());
         let bin = (((w.ln() - lo) / ((hi - lo) / ORACLE_BINS as f64)).floor())
             .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize;
-        let half = usize::from(f64::from(x) >= self.cx);
-        if let Some(b) = self
+        let (side, b, v, r) = self.region(x, y);
+        let idx = ((side * COLS + b) * 2 + v) * ROWS + r;
+        if let Some(bin) = self
             .hist
-            .get_mut(half)
+            .get_mut(idx)
+            .and_then(|h| h.get_mut(pop))
             .and_then(|h| h.get_mut(usize::from(positive)))
             .and_then(|h| h.get_mut(bin))
         {
-            *b += 1.0;
+            *bin += 1.0;
+            if let Some(r) = self.recent.get_mut(pop) {
+                *r += 1.0;
+            }
             self.samples += 1;
         }
     }
 
     /// Emits every output up to `t` (µs) inclusive (end of the recording).
-    pub fn finish(&mut self, t: f64, out: &mut std::vec::Vec<(f64, f64, bool)>) {
+    pub fn finish(&mut self, t: f64, out: &mut std::vec::Vec<(f64, f64, u8)>) {
         self.emit_until(t, true, out);
     }
 
-    fn emit_until(&mut self, t: f64, inclusive: bool, out: &mut std::vec::Vec<(f64, f64, bool)>) {
+    fn emit_until(&mut self, t: f64, inclusive: bool, out: &mut std::vec::Vec<(f64, f64, u8)>) {
         let Some(mut next) = self.next_out else {
             return;
         };
         while next < t || (inclusive && next <= t) {
-            let est = [self.half(0), self.half(1)];
-            let keep = (-self.period / self.tau_a).exp();
-            for b in self.hist.iter_mut().flatten().flatten() {
-                *b *= keep;
-            }
-            let v = match est {
-                [Some((l, sl)), Some((r, sr))] if sl == sr => {
-                    let m = 0.5 * (l + r);
-                    if sl {
-                        m
-                    } else {
-                        -m
-                    }
+            let warm = next - self.first_out
+                > f64::from(crate::readout::calibrated::WARMUP_US.div_ceil(self.period as u32))
+                    * self.period
+                    - 0.5 * self.period;
+            let est = if warm { self.estimate() } else { None };
+            let slow_tau = self
+                .tau_a
+                .max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
+            for (pop, tau) in [(0, self.tau_a), (1, slow_tau)] {
+                let keep = (-self.period / tau).exp();
+                for b in self
+                    .hist
+                    .iter_mut()
+                    .filter_map(|h| h.get_mut(pop))
+                    .flat_map(|h| h.iter_mut())
+                    .flatten()
+                {
+                    *b *= keep;
                 }
-                _ => 0.0,
+            }
+            let stale = if next - self.last_event > 100_000.0 {
+                crate::readout::flags::STALE
+            } else {
+                0
             };
-            out.push((next, v, next - self.last_event > 100_000.0));
+            let short_keep = (-self.period / f64::from(crate::readout::field::SHORT_TAU_US)).exp();
+            for (s, r) in self.short.iter_mut().zip(self.recent.iter_mut()) {
+                *s = *s * short_keep + *r;
+                *r = 0.0;
+            }
+            match est {
+                Some(v) => out.push((next, v, stale)),
+                None => out.push((next, 0.0, stale | crate::readout::flags::NO_EVIDENCE)),
+            }
             next += self.period;
         }
         self.next_out = Some(next);
     }
 
-    fn half(&self, h: usize) -> Option<(f64, bool)> {
-        let [neg, pos] = self.hist.get(h)?;
-        let (sn, sp): (f64, f64) = (neg.iter().sum(), pos.iter().sum());
-        let (win, lose, positive) = if sp >= sn {
-            (pos, neg, true)
-        } else {
-            (neg, pos, false)
+    fn estimate(&self) -> Option<f64> {
+        let slow_tau = self
+            .tau_a
+            .max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
+        let rate = |pop: usize, tau: f64| {
+            self.hist
+                .iter()
+                .filter_map(|h| h.get(pop))
+                .map(|h| h.iter().flatten().sum::<f64>())
+                .sum::<f64>()
+                / tau
         };
-        let net: std::vec::Vec<f64> = win
-            .iter()
-            .zip(lose)
-            .map(|(w, l)| (w - l).max(0.0))
-            .collect();
-        let net_sum: f64 = net.iter().sum();
-        if net_sum == 0.0 || net_sum < self.alpha * (sn + sp) {
+        let pop = usize::from(rate(0, self.tau_a) < rate(1, slow_tau));
+        let tau = if pop == 0 { self.tau_a } else { slow_tau };
+        let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
+        if self.short.get(pop).copied().unwrap_or(0.0) / short_tau * 8.0 < rate(pop, tau) {
             return None;
         }
-        let half_mass = 0.5 * (net_sum + self.prior);
-        if self.prior >= half_mass {
+        self.population_estimate(pop)
+    }
+
+    fn population_estimate(&self, pop: usize) -> Option<f64> {
+        let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
+        for b in 0..COLS {
+            let fits = [
+                self.column_intercept(pop, 0, b),
+                self.column_intercept(pop, 1, b),
+            ];
+            let est = match (fits, self.paired_bands == 0) {
+                ([Some((a, va)), Some((c, vc))], _) => Some((0.5 * (a + c), 0.25 * (va + vc))),
+                ([Some(a), None] | [None, Some(a)], true) => Some(a),
+                _ => None,
+            };
+            values.extend(est.map(|(v, var)| (v, 1.0 / var)));
+        }
+        if self.paired_bands > 0 && values.len() < self.support.min(self.paired_bands).max(1) {
             return None;
         }
-        let (lo, hi) = (0.02f64.ln(), 20.0f64.ln());
+        let total: f64 = values.iter().map(|v| v.1).sum();
+        if values.is_empty() || total <= 0.0 {
+            return None;
+        }
+        values.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut acc = 0.0;
+        for &(x, w) in &values {
+            acc += w;
+            if 2.0 * acc >= total {
+                return Some(x.clamp(-20.0, 20.0));
+            }
+        }
+        values.last().map(|v| v.0.clamp(-20.0, 20.0))
+    }
+
+    /// Intercept at `Y = 0` of the weighted least-squares fit `r = w + a Y (above) + b Y
+    /// (below)` over one column band's regions on one side, and its variance; slopes with a
+    /// prior of one standard deviation at 2 rad/s per unit of `Y`.
+    fn column_intercept(&self, pop: usize, side: usize, band: usize) -> Option<(f64, f64)> {
+        let (mut s, mut r_sum) = (0.0, 0.0);
+        let mut half = [(0.0f64, 0.0f64, 0.0f64); 2];
+        let mut points = 0;
+        for v in 0..2 {
+            for row in 0..ROWS {
+                let Some((m, var)) =
+                    self.population_value(((side * COLS + band) * 2 + v) * ROWS + row, pop)
+                else {
+                    continue;
+                };
+                let w = 1.0 / var;
+                let y =
+                    (row as f64 + 0.5) * self.band.1 / self.focal * if v == 0 { -1.0 } else { 1.0 };
+                s += w;
+                r_sum += w * m;
+                if let Some(h) = half.get_mut(v) {
+                    h.0 += w * y;
+                    h.1 += w * y * y;
+                    h.2 += w * m * y;
+                }
+                points += 1;
+            }
+        }
+        if points == 0 {
+            return None;
+        }
+        let (mut info, mut rhs) = (s, r_sum);
+        for &(sy, syy, sry) in &half {
+            if sy != 0.0 {
+                info -= sy * sy / (syy + 0.25);
+                rhs -= sy * sry / (syy + 0.25);
+            }
+        }
+        if info <= 0.0 {
+            return None;
+        }
+        Some((rhs / info, 1.0 / info))
+    }
+
+    /// `(median, variance of the median)` of one population in region `i`.
+    fn population_value(&self, i: usize, pop: usize) -> Option<(f64, f64)> {
+        let [neg, pos] = self.hist.get(i)?.get(pop)?;
+        let total: f64 = neg.iter().chain(pos.iter()).sum();
+        if total <= 0.0 || total < self.min_samples {
+            return None;
+        }
+        let (lo, hi) = (0.01f64.log2(), 20.0f64.log2());
         let bw = (hi - lo) / ORACLE_BINS as f64;
-        let mut acc = self.prior;
-        for (i, &m) in net.iter().enumerate() {
-            if m > 0.0 && acc + m >= half_mass {
-                let frac = (half_mass - acc) / m;
-                return Some(((lo + (i as f64 + frac) * bw).exp(), positive));
+        let signed = neg
+            .iter()
+            .enumerate()
+            .rev()
+            .map(|(i, &m)| (i, m, false))
+            .chain(pos.iter().enumerate().map(|(i, &m)| (i, m, true)));
+        let mut q = [
+            (total / 4.0, 0.0f64),
+            (total / 2.0, 0.0),
+            (total * 0.75, 0.0),
+        ];
+        let mut pending = q.iter_mut().peekable();
+        let mut acc = 0.0;
+        for (i, m, positive) in signed {
+            while let Some((target, value)) = pending.next_if(|(t, _)| m > 0.0 && acc + m >= *t) {
+                let frac = (*target - acc) / m;
+                let f = if positive { frac } else { 1.0 - frac };
+                let v = (lo + (i as f64 + f) * bw).exp2();
+                *value = if positive { v } else { -v };
             }
             acc += m;
         }
-        None
+        let [(_, q1), (_, median), (_, q3)] = q;
+        let iqr = (q3 - q1).abs().max(self.spread_floor);
+        Some((median, iqr * iqr / total.floor().max(1.0)))
     }
 }

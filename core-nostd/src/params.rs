@@ -17,6 +17,12 @@ pub type Trace = U5F27;
 /// stored trace free for flags.
 pub const TRACE_MAX: Trace = Trace::from_bits(0x7FFF_FFFF);
 
+/// FAC time constant of the slow units (µs): TDE units that differ from the paper's only in
+/// `tau_F`, for edges too slow for the 20 ms units (see the calibrated readout). A unit bursts
+/// when its drive reaches about `1/14.7` of `w_F`, so it times crossings up to about
+/// `2.7 tau_F`: 54 ms for the paper's units, 270 ms for these.
+pub const TAU_SLOW_US: u32 = 100_000;
+
 /// Parameters of the TDE unit (`model.md`):
 ///
 /// ```text

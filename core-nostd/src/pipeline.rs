@@ -99,11 +99,13 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
 }
 
 /// Onset gap of the product's pipeline (µs): a pixel whose last onset is older than this starts
-/// a new edge even without a polarity change.
-pub const ONSET_GAP_US: u32 = 50_000;
+/// a new edge even without a polarity change. Long enough that a slow edge (the slowest the
+/// slow units time, ~0.03 rad/s on a DAVIS346, takes ~250 ms per pixel), whose passage leaves
+/// several same-polarity events, counts once.
+pub const ONSET_GAP_US: u32 = 250_000;
 
 /// The product's pipeline, as the firmware and `host-sim run` both build it: the onset filter,
-/// the network over `layout` (state in `cells`, 8 bytes per pixel: the calibrated readout needs
+/// the network over `layout` (state in `cells`, 12 bytes per pixel: the calibrated readout needs
 /// no unit state), the calibrated readout, one sample per `cal.period_us`.
 pub fn calibrated<'a, L: Layout>(
     kernel: &'a crate::unit::Kernel,
@@ -111,7 +113,7 @@ pub fn calibrated<'a, L: Layout>(
     cells: &'a mut [crate::network::Cell],
     cal: crate::readout::calibrated::Calibration,
 ) -> Result<Pipeline<'a, L, crate::readout::calibrated::Calibrated>, crate::network::NetError> {
-    let readout = crate::readout::calibrated::Calibrated::new(kernel, layout.stride(), cal);
+    let readout = crate::readout::calibrated::Calibrated::new(kernel, &layout, cal);
     let net = Network::new(
         kernel,
         layout,

@@ -1,5 +1,7 @@
-//! The calibrated readout on an analytic stimulus: a rigid pattern of vertical edges sweeping
-//! across a small sensor at a known image speed gives back the yaw rate that speed implies.
+//! The calibrated readout on analytic stimuli: rigid patterns of vertical edges sweeping across
+//! a small sensor at known image speeds give back the yaw rate those speeds imply, translation
+//! (the halves moving apart) cancels, slow edges are timed by the slow units, and motion in one
+//! part of the view alone is not called a rotation.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -12,14 +14,21 @@ use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::{Dense, Layout};
 use core_nostd::network::{Cell, InputFilter, Network};
-use core_nostd::pipeline::Pipeline;
-use core_nostd::readout::calibrated::{Calibrated, Calibration};
+use core_nostd::pipeline::{self, Pipeline};
+use core_nostd::readout::calibrated::{self, Calibrated, Calibration};
 use core_nostd::readout::{flags, YawSample};
 use core_nostd::unit::Kernel;
 
 /// Edges at pseudo-random spacing move at `u` px/s (negative = leftwards); each crossing of a
 /// pixel gives `k` events of one polarity 200 µs apart, polarity alternating edge to edge.
 fn events(w: u16, h: u16, u: f64, k: u32, duration_s: f64) -> Vec<Event> {
+    let mut out = pattern(0..w, h, u, k, duration_s);
+    out.sort_by_key(|e| e.t_us);
+    out
+}
+
+/// The same over columns `cols` only (unsorted).
+fn pattern(cols: std::ops::Range<u16>, h: u16, u: f64, k: u32, duration_s: f64) -> Vec<Event> {
     let mut edges = Vec::new();
     let mut pos = 0.0;
     let mut seed = 12345u64;
@@ -32,7 +41,7 @@ fn events(w: u16, h: u16, u: f64, k: u32, duration_s: f64) -> Vec<Event> {
     }
     let mut out = Vec::new();
     for (i, &e) in edges.iter().enumerate() {
-        for x in 0..w {
+        for x in cols.clone() {
             // Pattern coordinate of pixel x at time t: x - u t; the edge at pattern position e
             // crosses pixel x when x - u t = e - 2000.
             let t = (f64::from(x) - (e - 2000.0)) / u;
@@ -51,46 +60,59 @@ fn events(w: u16, h: u16, u: f64, k: u32, duration_s: f64) -> Vec<Event> {
             }
         }
     }
-    out.sort_by_key(|e| e.t_us);
     out
 }
 
-fn run(u: f64, k: u32) -> Vec<YawSample> {
-    let (w, h) = (64u16, 4u16);
+/// Sensor of the tests: 96 x 24 px, f = 400 px, principal point at the centre, so that
+/// `G(x) = f + (x - c_x)^2 / f` stays within 401 .. 406 px.
+const W: u16 = 96;
+const H: u16 = 24;
+const F: f64 = 400.0;
+/// `G(x)` at the middle of its range.
+const G_MID: f64 = 403.0;
+
+/// The product's pipeline on the test sensor.
+fn run_events(evs: &[Event]) -> Vec<YawSample> {
+    let (w, h) = (W, H);
     let kernel = Kernel::DEFAULT;
     let layout = Dense::new(w, h, 2).unwrap();
     let mut cells = vec![Cell::default(); layout.cell_count()];
-    let net = Network::new(
-        &kernel,
-        layout,
-        &mut cells,
-        &mut [],
-        &mut [],
-        InputFilter::Onsets { gap_us: 50_000 },
-    )
-    .unwrap();
-    let cal = Calibration::new(U16F16::from_num(200), U16F16::from_num(31.5));
-    let readout = Calibrated::new(&kernel, 2, cal);
-    let mut p = Pipeline::new(net, readout, 1000);
+    // 4,560 units: a sparse layout, so the readout integrates over 100 ms.
+    let cal = Calibration::for_units(
+        U16F16::from_num(F),
+        U16F16::from_num(47.5),
+        U16F16::from_num(11.5),
+        layout.unit_count(),
+    );
+    let mut p = pipeline::calibrated(&kernel, layout, &mut cells, cal).unwrap();
     let mut out = Vec::new();
-    for ev in events(w, h, u, k, 2.0) {
+    for &ev in evs {
         p.event(ev, &mut |s| out.push(s));
     }
     out
 }
 
-/// Mean output over the second half (steady state) and the expected yaw rate.
+fn run(u: f64, k: u32) -> Vec<YawSample> {
+    run_events(&events(W, H, u, k, 2.0))
+}
+
+fn rate(s: &YawSample) -> f64 {
+    f64::from(s.yaw_rate.to_bits()) / 65536.0
+}
+
+/// Mean output over the second half (steady state).
+fn tail_mean(samples: &[YawSample]) -> f64 {
+    let tail = &samples[samples.len() / 2..];
+    tail.iter().map(rate).sum::<f64>() / tail.len() as f64
+}
+
+/// Mean output over the second half (steady state) against the expected yaw rate.
 fn check(u: f64, k: u32) {
     let samples = run(u, k);
     let tail = &samples[samples.len() / 2..];
-    let mean = tail
-        .iter()
-        .map(|s| f64::from(s.yaw_rate.to_bits()) / 65536.0)
-        .sum::<f64>()
-        / tail.len() as f64;
-    // Leftward motion (u < 0) = turning right = positive yaw; |w| = |u| / G(x), and G(x) ranges
-    // over f + (x - cx)^2 / f = 200 .. 205 px on this narrow sensor.
-    let expected = -u / 202.5;
+    let mean = tail_mean(&samples);
+    // Leftward motion (u < 0) = turning right = positive yaw; |w| = |u| / G(x).
+    let expected = -u / G_MID;
     let err = (mean - expected).abs() / expected.abs();
     eprintln!(
         "u = {u} px/s, {k} events/edge: mean {mean:.4} rad/s, expected {expected:.4} ({:.1} %)",
@@ -102,7 +124,9 @@ fn check(u: f64, k: u32) {
 
 #[test]
 fn recovers_the_rate_of_a_rigid_pattern() {
-    for u in [-60.0, -150.0, 100.0, 300.0] {
+    for u in [
+        -20.0, -30.0, -40.0, -60.0, -80.0, -100.0, -150.0, 100.0, 300.0,
+    ] {
         check(u, 1);
     }
 }
@@ -114,6 +138,72 @@ fn contrast_does_not_change_the_rate() {
     for k in [2, 4] {
         check(-120.0, k);
     }
+}
+
+#[test]
+fn translation_cancels_between_mirrored_sides() {
+    // Forward motion moves the halves apart (left half leftwards, right half rightwards) on top
+    // of the rotation: u = -w f -+ a. Each half alone decodes w +- a / f.
+    for (w, a) in [(0.3, 40.0), (-0.25, 60.0), (0.0, 50.0)] {
+        let mut evs = pattern(0..W / 2, H, -w * F - a, 1, 2.0);
+        evs.extend(pattern(W / 2..W, H, -w * F + a, 1, 2.0));
+        evs.sort_by_key(|e| e.t_us);
+        let mean = tail_mean(&run_events(&evs));
+        eprintln!("w = {w}, a = {a} px/s: mean {mean:.4} rad/s");
+        assert!((mean - w).abs() < 0.05 + 0.1 * w.abs(), "w = {w}: {mean}");
+    }
+}
+
+#[test]
+fn slow_edges_are_timed_by_the_slow_units() {
+    // 10 px/s: a 2-pixel crossing takes 200 ms, beyond the 54 ms of the paper's units.
+    for u in [-10.0, 16.0] {
+        let samples = run_events(&events(W, H, u, 1, 6.0));
+        let tail = &samples[samples.len() / 2..];
+        let expected = -u / G_MID;
+        let mean = tail_mean(&samples);
+        eprintln!("u = {u} px/s: mean {mean:.4} rad/s, expected {expected:.4}");
+        assert!(
+            (mean - expected).abs() < 0.15 * expected.abs(),
+            "{mean} vs {expected}"
+        );
+        let answered = tail
+            .iter()
+            .filter(|s| s.flags & flags::NO_EVIDENCE == 0)
+            .count();
+        assert!(
+            answered * 10 >= tail.len() * 9,
+            "{answered} of {}",
+            tail.len()
+        );
+    }
+}
+
+#[test]
+fn motion_in_one_part_of_the_view_is_not_rotation() {
+    // A textured object crosses the middle eighth of the view; the rest is still.
+    let mut evs = pattern(42..54, H, 120.0, 1, 2.0);
+    evs.sort_by_key(|e| e.t_us);
+    let samples = run_events(&evs);
+    assert!(!samples.is_empty());
+    assert!(
+        samples
+            .iter()
+            .all(|s| s.flags & flags::NO_EVIDENCE != 0 && s.yaw_rate == 0),
+        "an object moving on its own was read as a rotation"
+    );
+}
+
+#[test]
+fn the_first_outputs_say_no_evidence() {
+    let samples = run(-150.0, 1);
+    let warmup = (calibrated::WARMUP_US / 1000) as usize;
+    assert!(samples[..warmup]
+        .iter()
+        .all(|s| s.flags & flags::NO_EVIDENCE != 0 && s.yaw_rate == 0));
+    assert!(samples[warmup..2 * warmup]
+        .iter()
+        .any(|s| s.flags & flags::NO_EVIDENCE == 0));
 }
 
 #[test]
@@ -132,8 +222,12 @@ fn no_events_means_stale_and_zero() {
     .unwrap();
     let readout = Calibrated::new(
         &kernel,
-        2,
-        Calibration::new(U16F16::from_num(200), U16F16::from_num(8)),
+        &layout,
+        Calibration::new(
+            U16F16::from_num(200),
+            U16F16::from_num(8),
+            U16F16::from_num(0.5),
+        ),
     );
     let mut p = Pipeline::new(net, readout, 1000);
     let mut out = Vec::new();

@@ -18,7 +18,7 @@ use core_nostd::readout::YawSample;
 use core_nostd::unit::Kernel;
 
 /// Event times relative to the start (u64 µs): every 10 s, 400 ms of a rigid pattern of edges
-/// (12 px apart, alternating polarity) sweeping left at 150 px/s over a 48 x 4 sensor; 3.6 hours
+/// (12 px apart, alternating polarity) sweeping left at 150 px/s over a 96 x 24 sensor; 3.6 hours
 /// in all (three wraps of the u32 clock).
 fn stream() -> Vec<(u64, u16, u16, bool)> {
     let (u, window_s) = (150.0f64, 0.4f64);
@@ -27,13 +27,13 @@ fn stream() -> Vec<(u64, u16, u16, bool)> {
     while burst * 10_000_000 < 13_000_000_000 {
         let t0 = burst * 10_000_000;
         let phase = (burst % 7) as f64;
-        for x in 0..48u16 {
+        for x in 0..96u16 {
             // Pixel x sees the pattern point x + u t; edge k sits at 12 k + phase.
-            for k in 0..12u32 {
+            for k in 0..16u32 {
                 let p = f64::from(12 * k) + phase;
                 let t = (p - f64::from(x)) / u;
                 if (0.0..window_s).contains(&t) {
-                    for y in 0..4 {
+                    for y in 0..24 {
                         out.push((t0 + (t * 1e6) as u64, x, y, k % 2 == 0));
                     }
                 }
@@ -47,13 +47,14 @@ fn stream() -> Vec<(u64, u16, u16, bool)> {
 
 fn run(events: &[(u64, u16, u16, bool)], clock0: u32) -> Vec<YawSample> {
     let k = Kernel::DEFAULT;
-    let layout = Dense::new(48, 4, 2).unwrap();
+    let layout = Dense::new(96, 24, 2).unwrap();
     let mut cells = vec![Cell::default(); layout.cell_count()];
     let cal = Calibration {
         period_us: 100_000,
         ..Calibration::for_units(
             U16F16::from_num(200),
-            U16F16::from_num(23.5),
+            U16F16::from_num(47.5),
+            U16F16::from_num(11.5),
             layout.unit_count(),
         )
     };

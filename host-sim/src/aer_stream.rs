@@ -153,6 +153,9 @@ pub struct Args {
     /// Principal point column in px (default: from the recording, else the sensor centre).
     #[arg(long)]
     pub cx: Option<f64>,
+    /// Principal point row in px (default: from the recording, else the sensor centre).
+    #[arg(long)]
+    pub cy: Option<f64>,
     /// Sensor width in px (default: from the recording).
     #[arg(long, requires = "height")]
     pub width: Option<u16>,
@@ -185,7 +188,7 @@ fn config_frame(
     w: u16,
     h: u16,
     focal: Option<f64>,
-    cx: f64,
+    (cx, cy): (f64, f64),
 ) -> Result<Vec<u8>> {
     use core_nostd::aer::config::{LayoutChoice, StreamConfig};
     let Some(focal) = focal else {
@@ -207,7 +210,7 @@ fn config_frame(
         height: h,
         focal_px: U16F16::saturating_from_num(focal),
         cx: U16F16::saturating_from_num(cx),
-        cy: U16F16::saturating_from_num(f64::from(h.saturating_sub(1)) / 2.0),
+        cy: U16F16::saturating_from_num(cy),
         layout,
         stride: args.config_stride,
         period_us: args.config_period_us,
@@ -224,7 +227,7 @@ fn config_frame(
 }
 
 /// Writes the stream and prints one line on stdout:
-/// `events=N t0_us=T width=W height=H focal_bits=F cx_bits=C` (intrinsics as U16F16 bits, the
+/// `events=N t0_us=T width=W height=H focal_bits=F cx_bits=C cy_bits=D` (intrinsics as U16F16 bits, the
 /// values `host-sim run` would use; `focal_bits=0` when the focal length is unknown).
 ///
 /// The events are read and encoded a chunk at a time. The firmware runs one pipeline over the
@@ -246,7 +249,7 @@ pub fn run(args: Args) -> Result<()> {
         args.format,
         args.width.zip(args.height),
         args.focal_px,
-        args.cx,
+        (args.cx, args.cy),
         true,
     )?;
     let crate::commands::run::Camera {
@@ -254,10 +257,11 @@ pub fn run(args: Args) -> Result<()> {
         height: h,
         focal,
         cx,
+        cy,
     } = camera;
     let mut wire = crate::output::AtomicFile::create(&args.out)?;
     if let Some(layout) = &args.config {
-        let frame = config_frame(&args, layout, w, h, focal, cx)?;
+        let frame = config_frame(&args, layout, w, h, focal, (cx, cy))?;
         wire.writer()
             .write_all(&frame)
             .with_context(|| format!("cannot write {}", args.out.display()))?;
@@ -278,9 +282,10 @@ pub fn run(args: Args) -> Result<()> {
     }
     let bits = |v: f64| U16F16::saturating_from_num(v).to_bits();
     println!(
-        "events={events} t0_us={t0} width={w} height={h} focal_bits={} cx_bits={}",
+        "events={events} t0_us={t0} width={w} height={h} focal_bits={} cx_bits={} cy_bits={}",
         focal.map_or(0, bits),
-        bits(cx)
+        bits(cx),
+        bits(cy)
     );
     Ok(())
 }

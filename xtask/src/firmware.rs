@@ -293,6 +293,7 @@ pub struct QemuArgs {
     pub stride: Option<u16>,
     pub focal_px: Option<f64>,
     pub cx: Option<f64>,
+    pub cy: Option<f64>,
     pub width: Option<u16>,
     pub height: Option<u16>,
     pub rate_hz: u32,
@@ -343,9 +344,7 @@ impl QemuArgs {
                 "--stride" => a.stride = Some(val()?.parse().context("--stride: not a number")?),
                 "--focal-px" => a.focal_px = Some(num(val()?)?),
                 "--cx" => a.cx = Some(num(val()?)?),
-                "--cy" => {
-                    num(val()?)?; // yaw does not use it (as host-sim run)
-                }
+                "--cy" => a.cy = Some(num(val()?)?),
                 "--width" => a.width = Some(val()?.parse().context("--width: not a number")?),
                 "--height" => a.height = Some(val()?.parse().context("--height: not a number")?),
                 "--rate-hz" => a.rate_hz = val()?.parse().context("--rate-hz: not a number")?,
@@ -405,6 +404,7 @@ struct StreamInfo {
     height: u16,
     focal_bits: u32,
     cx_bits: u32,
+    cy_bits: u32,
 }
 
 fn key<'a>(line: &'a str, k: &str) -> Option<&'a str> {
@@ -460,12 +460,14 @@ fn prepare_stream(a: &QemuArgs, stream: &Path) -> Result<StreamInfo> {
             .focal_px
             .context("an AER stream carries no intrinsics: pass --focal-px (and --cx)")?;
         let cx = a.cx.unwrap_or((f64::from(width) - 1.0) / 2.0);
+        let cy = a.cy.unwrap_or((f64::from(height) - 1.0) / 2.0);
         return Ok(StreamInfo {
             t0_us: 0,
             width,
             height,
             focal_bits: u16f16_bits(focal),
             cx_bits: u16f16_bits(cx),
+            cy_bits: u16f16_bits(cy),
         });
     }
     let mut c = host_sim();
@@ -493,6 +495,9 @@ fn prepare_stream(a: &QemuArgs, stream: &Path) -> Result<StreamInfo> {
     if let Some(x) = a.cx {
         c.arg("--cx").arg(x.to_string());
     }
+    if let Some(y) = a.cy {
+        c.arg("--cy").arg(y.to_string());
+    }
     if let (Some(w), Some(h)) = (a.width, a.height) {
         c.args(["--width", &w.to_string(), "--height", &h.to_string()]);
     }
@@ -514,6 +519,7 @@ fn prepare_stream(a: &QemuArgs, stream: &Path) -> Result<StreamInfo> {
         height: get("height")? as u16,
         focal_bits: get("focal_bits")? as u32,
         cx_bits: get("cx_bits")? as u32,
+        cy_bits: get("cy_bits")? as u32,
     };
     if info.focal_bits == 0 {
         bail!("focal length unknown: pass --focal-px (and --cx)");
@@ -604,6 +610,8 @@ pub fn qemu_run(a: &QemuArgs) -> Result<QemuReport> {
         info.focal_bits.to_string(),
         "--cx-bits".into(),
         info.cx_bits.to_string(),
+        "--cy-bits".into(),
+        info.cy_bits.to_string(),
         "--period-us".into(),
         (1_000_000 / a.rate_hz).to_string(),
         "--icount-shift".into(),

@@ -17,42 +17,55 @@
 //! burst says `|w| = s / (dt (f + (x - c_x)^2 / f))`, positive (turning right) for right-to-left
 //! units.
 //!
-//! # Robust aggregation
-//! Decoded rates go into leaky histograms (time constant `tau_A`, 64 bins over `ln |w|` from
-//! 0.02 to 20 rad/s), one per image half and sign. Per half: the sign with more mass wins, the
-//! losing sign's histogram is subtracted bin by bin (clutter from noise and from the unit facing
-//! the other way is about symmetric), and if the remaining mass is below `alpha` of all samples
-//! the half reports 0; else its median. Translation moves the two halves in opposite directions
-//! and rotation in the same one: the output is the mean of the halves when they agree in sign,
-//! else 0 (flagged [`flags::NO_EVIDENCE`]).
+//! # Slow edges
+//! A burst needs a drive of about `w_F / 14.7`, so the paper's units (`tau_F` = 20 ms) time
+//! crossings up to ~54 ms: at stride 2 on a DAVIS346 (f = 226 px) nothing below about
+//! 0.17 rad/s. Each pixel also feeds a slow FAC trace (`tau_F` = [`TAU_SLOW_US`], the same
+//! unit otherwise) whose units time crossings up to ~270 ms. A trigger is decoded from the
+//! paper's units when they burst and from the slow units only when they do not, so slow units
+//! add the slow edges without weighing in where the fast ones see the edge (their longer memory
+//! blurs accelerations). Slow traces near saturation (own trace >= 8) are not decoded.
+//!
+//! # From bursts to one rate
+//! Decoded rates go to the [`field`](super::field) estimator: regions mirrored about the
+//! principal point cancel forward translation, pitch and roll; the rotation must hold in
+//! several column bands before it is reported (see its module documentation for the model).
 
 use fixed::types::{I16F16, U16F16};
 
+use super::field::{
+    Field, FieldEstimate, FieldGeometry, FieldSettings, Population, COL_BANDS, ROW_BANDS,
+};
 use super::{flags, Readout};
-use crate::exp_table::{ExpDecay, ONE_Q31};
-use crate::log2::{exp2_q16, log2_q16};
+use crate::layout::Layout;
+use crate::log2::log2_q16;
 use crate::network::{NetSink, Trigger};
-use crate::params::Trace;
+use crate::params::{Trace, TAU_SLOW_US};
 use crate::unit::{Kernel, UnitState};
-
-/// Histogram bins per image half and sign.
-pub const BINS: usize = 64;
-
-/// Lowest and highest |yaw rate| the histograms resolve (rad/s); outside values fall into the
-/// end bins.
-pub const RATE_RANGE: (f32, f32) = (0.02, 20.0);
-
-/// `log2(0.02)` and `log2(20)` in Q16.16 (bin edges of the histograms).
-const LOG2_LO: i32 = -369_876;
-const LOG2_HI: i32 = 283_242;
-/// Bin width in Q16.16 log2 units.
-const BIN_W: i32 = (LOG2_HI - LOG2_LO) / BINS as i32;
 
 /// `log2(1e6)` in Q16.16 (µs to s).
 const LOG2_1E6: i32 = 1_306_235;
 
-/// One sample's weight in the histograms (Q16).
-const SAMPLE: u32 = 1 << 16;
+/// The slow units are decoded only at pixels whose own fast FAC trace, after the event, is below
+/// `w_F` plus this: the pixel had no onset in the last ~46 ms, so the scene moves slowly there.
+/// Where edges pass fast, a fast unit that does not burst means its FAC pixel missed the edge,
+/// and the slow trace would time an older edge instead.
+const SLOW_SCENE_MARGIN: Trace = Trace::from_bits(0x00CC_CCCD); // 0.1
+
+/// A unit's drive must be at least `2^DOMINANCE_LOG2` times its twin's (the unit at the same
+/// pixel facing the other way) to be decoded.
+const DOMINANCE_LOG2: u32 = 1;
+
+/// Slow traces at or above this level are not decoded (they may have saturated).
+const SLOW_TRACE_LIMIT: Trace = Trace::const_from_int(8);
+
+/// Outputs during this long after the first output (µs) say "no evidence": every pixel's first
+/// event looks like an onset, so the first decodes time the order in which pixels woke up, not
+/// edges crossing.
+pub const WARMUP_US: u32 = 20_000;
+
+/// Smallest histogram time constant of the slow units (µs): they see few edges per period.
+pub const SLOW_TAU_A_US: u32 = 100_000;
 
 /// Layouts with fewer units than this are sparse (see [`Calibration::for_units`]).
 pub const SPARSE_UNITS: usize = 10_000;
@@ -74,57 +87,47 @@ pub struct Calibration {
     pub focal_px: U16F16,
     /// Principal point, column (px).
     pub cx: U16F16,
+    /// Principal point, row (px).
+    pub cy: U16F16,
     /// Leaky histogram time constant (µs).
     pub tau_a_us: u32,
     /// Output period (µs).
     pub period_us: u32,
-    /// Net-evidence gate: the winning sign must outweigh the losing one by this fraction of all
-    /// samples in a half (Q16).
-    pub alpha: U16F16,
-    /// Mass at zero that a half's median must overcome, in samples.
-    pub prior: U16F16,
+    /// How the field's regions are combined (gates, spread).
+    pub field: FieldSettings,
 }
 
 impl Calibration {
-    /// Defaults for a camera with focal length `focal_px` and principal column `cx`:
-    /// `tau_A` = 10 ms (model.md), 1 kHz output, `alpha` = 0.3, a prior of 3 samples.
-    pub fn new(focal_px: U16F16, cx: U16F16) -> Self {
-        Self::with_tau_a(focal_px, cx, 10_000)
-    }
-
-    /// Defaults for a layout of `units` units: `tau_A` = 10 ms for dense layouts, and for
-    /// sparse ones (fewer than [`SPARSE_UNITS`], like the paper's 200-unit boxes) 100 ms, since
-    /// they see far fewer edges per millisecond.
-    pub fn for_units(focal_px: U16F16, cx: U16F16, units: usize) -> Self {
-        let tau = if units < SPARSE_UNITS {
-            100_000
-        } else {
-            10_000
-        };
-        Self::with_tau_a(focal_px, cx, tau)
-    }
-
-    fn with_tau_a(focal_px: U16F16, cx: U16F16, tau_a_us: u32) -> Self {
+    /// Defaults for a camera with focal length `focal_px` and principal point `(cx, cy)`:
+    /// `tau_A` = 10 ms (model.md), 1 kHz output, [`FieldSettings::DEFAULT`].
+    pub fn new(focal_px: U16F16, cx: U16F16, cy: U16F16) -> Self {
         Self {
             focal_px,
             cx,
-            tau_a_us,
+            cy,
+            tau_a_us: 10_000,
             period_us: 1_000,
-            alpha: U16F16::from_bits(19_661),
-            prior: U16F16::from_num(3),
+            field: FieldSettings::DEFAULT,
+        }
+    }
+
+    /// Defaults for a layout of `units` units: `tau_A` from [`default_tau_a_us`] (10 ms for
+    /// dense layouts, 100 ms for sparse ones such as the paper's 200-unit boxes, which see far
+    /// fewer edges per millisecond).
+    pub fn for_units(focal_px: U16F16, cx: U16F16, cy: U16F16, units: usize) -> Self {
+        Self {
+            tau_a_us: default_tau_a_us(units),
+            ..Self::new(focal_px, cx, cy)
         }
     }
 }
 
-/// The calibrated readout's state: 4 x 64 histogram bins and the decoding constants.
+/// The calibrated readout's state: the field's histograms and the decoding constants.
 pub struct Calibrated {
     cal: Calibration,
-    /// `[half][sign][bin]`, sign 0 = negative (left-to-right), 1 = positive.
-    hist: [[[u32; BINS]; 2]; 2],
-    /// Per-period decay factor of the histograms (Q1.31).
-    keep_q31: u32,
-    /// `log2(tau_F)` (µs) in Q16.16.
-    log2_tau_f: i32,
+    field: Field,
+    /// `log2(tau_F)` of the paper's units and of the slow units (µs), Q16.16.
+    log2_tau: [i32; 2],
     /// `log2(stride)` in Q16.16.
     log2_stride: i32,
     /// `w_T` bits (U16F16) for the normalisation.
@@ -133,31 +136,57 @@ pub struct Calibrated {
     inv_f_q32: u64,
     /// Smallest drive that makes a burst from rest.
     min_drive: Trace,
+    /// Own fast trace (after the event) below which the slow units are decoded.
+    slow_scene_own: Trace,
+    /// Outputs still to suppress (see [`WARMUP_US`]).
+    warmup_outputs: u32,
     /// Decoded bursts so far.
     pub samples: u64,
+    /// Of which from the slow units.
+    pub slow_samples: u64,
 }
 
 impl Calibrated {
-    /// A readout for the network of `kernel` with stride `stride`.
-    pub fn new(kernel: &Kernel, stride: u16, cal: Calibration) -> Self {
+    /// A readout for the network of `kernel` over `layout`.
+    pub fn new<L: Layout>(kernel: &Kernel, layout: &L, cal: Calibration) -> Self {
         let p = kernel.params();
-        let keep_q31 = ExpDecay::new(cal.tau_a_us).decay_bits(cal.period_us);
         let f_bits = u64::from(cal.focal_px.to_bits().max(1));
+        let (cx, cy) = (i64::from(cal.cx.to_bits()), i64::from(cal.cy.to_bits()));
+        let (xs, ys) = unit_span(layout);
+        let geometry = FieldGeometry::spanning(cx, cy, i64::from(cal.focal_px.to_bits()), xs, ys);
+        let paired_bands = paired_bands(layout, &geometry);
         Self {
             cal,
-            hist: [[[0; BINS]; 2]; 2],
-            keep_q31,
-            log2_tau_f: log2_q16(u64::from(p.tau_fac_us), 0),
-            log2_stride: log2_q16(u64::from(stride.max(1)), 0),
+            field: Field::new(
+                geometry,
+                cal.field,
+                [cal.tau_a_us, cal.tau_a_us.max(SLOW_TAU_A_US)],
+                cal.period_us,
+                paired_bands,
+            ),
+            log2_tau: [
+                log2_q16(u64::from(p.tau_fac_us), 0),
+                log2_q16(u64::from(TAU_SLOW_US), 0),
+            ],
+            log2_stride: log2_q16(u64::from(layout.stride().max(1)), 0),
             w_trg: p.w_trg.to_bits(),
             inv_f_q32: (1u64 << 48) / f_bits,
             min_drive: min_burst_drive(kernel),
+            slow_scene_own: Trace::saturating_from_num(p.w_fac).saturating_add(SLOW_SCENE_MARGIN),
+            warmup_outputs: WARMUP_US.div_ceil(cal.period_us.max(1)),
             samples: 0,
+            slow_samples: 0,
         }
     }
 
-    /// `log2 |w|` (Q16.16) that a burst with this drive at column `x` stands for, if it decodes.
-    fn decode(&self, drive: Trace, own_fac: Trace, x: u16) -> Option<i32> {
+    /// The settings.
+    pub fn calibration(&self) -> &Calibration {
+        &self.cal
+    }
+
+    /// `log2 dt` (Q16.16, dt in s) that a burst with this drive codes for, with FAC time
+    /// constant `2^log2_tau` µs, if it decodes.
+    fn decode_dt(&self, drive: Trace, own_fac: Trace, log2_tau: i32) -> Option<i32> {
         if drive < self.min_drive || own_fac == Trace::ZERO {
             return None;
         }
@@ -170,63 +199,66 @@ impl Calibrated {
         if l >= 0 {
             return None;
         }
-        // dt = tau_F · (-l) · ln 2 (µs); log2 dt = log2 tau_F + log2(-l · ln 2).
+        // dt = tau · (-l) · ln 2 (µs); log2 dt = log2 tau + log2(-l · ln 2).
         let neg_l_ln2 = (u64::from(l.unsigned_abs()) * crate::log2::LN2_Q32) >> 32; // Q16
         if neg_l_ln2 == 0 {
             return None; // dt below the decoder's resolution (~1e-5 tau)
         }
-        let log2_dt_us = self.log2_tau_f.saturating_add(log2_q16(neg_l_ln2, 16));
-        let log2_dt_s = log2_dt_us.saturating_sub(LOG2_1E6);
+        let log2_dt_us = log2_tau.saturating_add(log2_q16(neg_l_ln2, 16));
+        Some(log2_dt_us.saturating_sub(LOG2_1E6))
+    }
+
+    /// `log2 |w|` (Q16.16) of a crossing of the stride in `2^log2_dt_s` s at column `x`.
+    fn rotation_rate(&self, log2_dt_s: i32, x: u16) -> i32 {
         // G(x) = f + (x - cx)^2 / f in px, Q16.
         let dx = i64::from(u32::from(x) << 16) - i64::from(self.cal.cx.to_bits());
         let dx2 = dx.unsigned_abs().saturating_mul(dx.unsigned_abs()) >> 16; // Q16 px^2
         let g = u64::from(self.cal.focal_px.to_bits()).saturating_add(
             ((u128::from(dx2) * u128::from(self.inv_f_q32)) >> 32).min(u128::from(u64::MAX)) as u64,
         );
-        Some(
-            self.log2_stride
-                .saturating_sub(log2_dt_s)
-                .saturating_sub(log2_q16(g, 16)),
-        )
+        self.log2_stride
+            .saturating_sub(log2_dt_s)
+            .saturating_sub(log2_q16(g, 16))
     }
+}
 
-    /// One half's estimate: `(log2 |w|, sign)` or `None` when its evidence does not pass.
-    fn half_estimate(&self, half: &[[u32; BINS]; 2]) -> Option<(i32, bool)> {
-        let [neg, pos] = half;
-        let sum = |h: &[u32; BINS]| h.iter().map(|&b| u64::from(b)).sum::<u64>();
-        let (sn, sp) = (sum(neg), sum(pos));
-        let (win, lose, positive) = if sp >= sn {
-            (pos, neg, true)
-        } else {
-            (neg, pos, false)
-        };
-        let mut net = [0u64; BINS];
-        let mut net_sum = 0u64;
-        for (n, (w, l)) in net.iter_mut().zip(win.iter().zip(lose.iter())) {
-            *n = u64::from(w.saturating_sub(*l));
-            net_sum += *n;
+/// Bounding box of the pixels that have units: `((x_min, x_max), (y_min, y_max))`.
+fn unit_span<L: Layout>(layout: &L) -> ((u16, u16), (u16, u16)) {
+    let (mut x0, mut x1, mut y0, mut y1) = (u16::MAX, 0u16, u16::MAX, 0u16);
+    for c in 0..layout.cell_count() {
+        if layout.units(c) == 0 {
+            continue;
         }
-        let gate = ((sn + sp) * u64::from(self.cal.alpha.to_bits())) >> 16;
-        if net_sum == 0 || net_sum < gate {
-            return None;
-        }
-        let prior = u64::from(self.cal.prior.to_bits()); // samples in Q16 = same scale as bins
-        let half_mass = (net_sum + prior) / 2;
-        if prior >= half_mass {
-            return None;
-        }
-        let mut acc = prior;
-        for (i, &m) in net.iter().enumerate() {
-            if m > 0 && acc + m >= half_mass {
-                let frac_q16 = ((half_mass - acc) << 16) / m;
-                let pos_q16 = ((i as i64) << 16) + frac_q16 as i64;
-                let l2 = i64::from(LOG2_LO) + ((pos_q16 * i64::from(BIN_W)) >> 16);
-                return Some((l2 as i32, positive));
-            }
-            acc += m;
-        }
-        None
+        let (x, y) = layout.pixel(c);
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
     }
+    if x0 > x1 {
+        return ((0, 0), (0, 0));
+    }
+    ((x0, x1), (y0, y1))
+}
+
+/// Column bands in which the layout has units on both sides of the principal point (0 when
+/// its regions never mirror, which switches the field to its unpaired fallback).
+fn paired_bands<L: Layout>(layout: &L, g: &FieldGeometry) -> u8 {
+    let mut seen = [[false; COL_BANDS]; 2];
+    for c in 0..layout.cell_count() {
+        if layout.units(c) == 0 {
+            continue;
+        }
+        let (x, y) = layout.pixel(c);
+        let r = g.region(x, y);
+        let side = r / (COL_BANDS * 2 * ROW_BANDS);
+        let band = (r / (2 * ROW_BANDS)) % COL_BANDS;
+        if let Some(s) = seen.get_mut(side).and_then(|s| s.get_mut(band)) {
+            *s = true;
+        }
+    }
+    let [l, r] = seen;
+    l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count() as u8
 }
 
 /// Smallest TRG drive that makes a unit at rest burst (`q·tau/e >= 1`).
@@ -249,43 +281,56 @@ fn min_burst_drive(kernel: &Kernel) -> Trace {
 
 impl NetSink for Calibrated {
     const SPIKES: bool = false;
+    const SLOW: bool = true;
 
     fn trigger(&mut self, t: &Trigger) {
-        let [lr, rl] = t.drive;
-        let (drive, positive) = if rl > lr { (rl, true) } else { (lr, false) };
-        let Some(l2) = self.decode(drive, t.own_fac, t.x) else {
-            return;
+        // The stronger unit, if it clearly dominates (else the pixel's two neighbours saw
+        // edges about as recently and the direction is ambiguous: no decode).
+        let stronger = |[lr, rl]: [Trace; 2]| {
+            let (win, lose, positive) = if rl > lr {
+                (rl, lr, true)
+            } else {
+                (lr, rl, false)
+            };
+            if lose.to_bits() > win.to_bits() >> DOMINANCE_LOG2 {
+                (Trace::ZERO, positive)
+            } else {
+                (win, positive)
+            }
         };
-        let bin = (l2.saturating_sub(LOG2_LO) / BIN_W).clamp(0, BINS as i32 - 1) as usize;
-        let half = usize::from(u32::from(t.x) << 16 >= self.cal.cx.to_bits());
-        if let Some(b) = self
-            .hist
-            .get_mut(half)
-            .and_then(|h| h.get_mut(usize::from(positive)))
-            .and_then(|h| h.get_mut(bin))
-        {
-            *b = b.saturating_add(SAMPLE);
-            self.samples += 1;
-        }
+        let (drive, positive) = stronger(t.drive);
+        let [tau_fast, tau_slow] = self.log2_tau;
+        let (dt, positive, pop) = match self.decode_dt(drive, t.own_fac, tau_fast) {
+            Some(dt) => (dt, positive, Population::Fast),
+            None => {
+                if t.own_slow >= SLOW_TRACE_LIMIT || t.own_fac >= self.slow_scene_own {
+                    return;
+                }
+                let (drive, positive) = stronger(t.slow_drive);
+                let Some(dt) = self.decode_dt(drive, t.own_slow, tau_slow) else {
+                    return;
+                };
+                self.slow_samples += 1;
+                (dt, positive, Population::Slow)
+            }
+        };
+        let l2 = self.rotation_rate(dt, t.x);
+        self.field.add(pop, t.x, t.y, l2, positive);
+        self.samples += 1;
     }
 }
 
 impl Readout for Calibrated {
     fn output(&mut self, _t_us: u32) -> (I16F16, u8) {
-        let est = [
-            self.half_estimate(&self.hist[0]),
-            self.half_estimate(&self.hist[1]),
-        ];
-        for b in self.hist.iter_mut().flatten().flatten() {
-            *b = ((u64::from(*b) * u64::from(self.keep_q31) + u64::from(ONE_Q31 / 2)) >> 31) as u32;
+        let est = self.field.estimate();
+        self.field.age();
+        if self.warmup_outputs > 0 {
+            self.warmup_outputs -= 1;
+            return (I16F16::ZERO, flags::NO_EVIDENCE);
         }
         match est {
-            [Some((l, sl)), Some((r, sr))] if sl == sr => {
-                let mean = (u64::from(exp2_q16(l)) + u64::from(exp2_q16(r))) / 2;
-                let v = mean.min(i32::MAX as u64) as i32;
-                (I16F16::from_bits(if sl { v } else { -v }), 0)
-            }
-            _ => (I16F16::ZERO, flags::NO_EVIDENCE),
+            FieldEstimate::Rotation(v) => (I16F16::from_bits(v), 0),
+            FieldEstimate::NoEvidence => (I16F16::ZERO, flags::NO_EVIDENCE),
         }
     }
 }

@@ -6,6 +6,7 @@
 //!   left-to-right spikes; divided by its maximum over the recording afterwards (host only).
 
 pub mod calibrated;
+pub mod field;
 pub mod normalized;
 
 use fixed::types::I16F16;

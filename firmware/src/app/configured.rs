@@ -136,6 +136,7 @@ async fn run_layout<L: Layout, K: YawSink, M: CostMeter>(
     let pc = ProcessConfig {
         focal_px: cfg.focal_px,
         cx: cfg.cx,
+        cy: cfg.cy,
         period_us: cfg.period_us,
     };
     let mut pipeline = process::build(kernel, layout, cells, &pc).map_err(|_| Refused::Network)?;

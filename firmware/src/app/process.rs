@@ -20,6 +20,8 @@ pub struct ProcessConfig {
     pub focal_px: U16F16,
     /// Principal point column in px.
     pub cx: U16F16,
+    /// Principal point row in px.
+    pub cy: U16F16,
     /// Output period in µs (1000 = 1 kHz).
     pub period_us: u32,
 }
@@ -36,7 +38,7 @@ pub fn build<'a, L: Layout>(
 ) -> Result<Processor<'a, L>, NetError> {
     let cal = Calibration {
         period_us: cfg.period_us,
-        ..Calibration::for_units(cfg.focal_px, cfg.cx, layout.unit_count())
+        ..Calibration::for_units(cfg.focal_px, cfg.cx, cfg.cy, layout.unit_count())
     };
     core_nostd::pipeline::calibrated(kernel, layout, cells, cal)
 }

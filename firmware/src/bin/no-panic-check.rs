@@ -68,6 +68,7 @@ fn run<L: Layout>(layout: L, cells: &mut [Cell]) {
     let cal = Calibration::for_units(
         U16F16::from_bits(param(0)),
         U16F16::from_bits(param(1)),
+        U16F16::from_bits(param(4)),
         layout.unit_count(),
     );
     let cal = Calibration {

@@ -56,14 +56,18 @@ const FOCAL_PX: U16F16 = U16F16::const_from_int(226);
 const CX: U16F16 = U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2);
 /// Which network runs: the paper's boxes (800 cells), or [`DENSE_WINDOW`].
 const LAYOUT: LayoutChoice = LayoutChoice::PaperBoxes;
-/// The largest dense window that fits the CCM: 192 x 40 pixels (7680 cells of 8 bytes,
-/// 61 440 B, 15 200 units), centred.
+/// Columns of the dense window.
+const WINDOW_COLS: u16 = 192;
+/// Rows of the dense window: as many as the CCM holds (28 rows of 12-byte cells).
+const WINDOW_ROWS: u16 = (MAX_CELLS / WINDOW_COLS as usize) as u16;
+/// The largest dense window that fits the CCM: 192 x 28 pixels (5376 cells of 12 bytes,
+/// 64 512 B, 10 640 units), centred.
 #[allow(dead_code)]
 const DENSE_WINDOW: LayoutChoice = LayoutChoice::Window {
-    x0: (SENSOR.0 - 192) / 2,
-    y0: (SENSOR.1 - 40) / 2,
-    w: 192,
-    h: 40,
+    x0: (SENSOR.0 - WINDOW_COLS) / 2,
+    y0: (SENSOR.1 - WINDOW_ROWS) / 2,
+    w: WINDOW_COLS,
+    h: WINDOW_ROWS,
 };
 /// What runs until the AER stream sends a configuration frame (`docs/wire-formats.md`).
 const DEFAULTS: StreamConfig = StreamConfig {
@@ -76,8 +80,8 @@ const DEFAULTS: StreamConfig = StreamConfig {
     stride: 2,
     period_us: 1_000,
 };
-/// Cells reserved in CCM (the largest layout that fits: the dense window).
-const MAX_CELLS: usize = 7680;
+/// Cells reserved in CCM: as many as its 64 KiB hold (the dense window is the largest layout).
+const MAX_CELLS: usize = 64 * 1024 / core::mem::size_of::<Cell>();
 /// SPI DMA ring size (bytes): 4 KiB is ~2 ms at 2 MB/s.
 const RING_BYTES: usize = 4096;
 /// SPI1 RX request on DMA2 stream 0 (channel 3).

@@ -13,7 +13,7 @@
 //!   the network cells fill the 512 KiB AXI SRAM; the DMA buffers sit in SRAM1 (DMA1 cannot
 //!   reach the DTCM). The whole 346 x 260 dense network needs 89 960 cells x 8 B = 719 680 B
 //!   in one piece, more than the largest SRAM block, so the board runs the largest dense
-//!   window that fits the AXI SRAM: 346 x 189 (all columns, 189 of 260 rows, centred).
+//!   window that fits the AXI SRAM: 346 x 126 (all columns, 126 of 260 rows, centred).
 //! - Caches: the instruction cache is on; the data cache stays off, because the DMA buffers
 //!   would need cache maintenance or an MPU region (cells in AXI SRAM run uncached).
 //!
@@ -61,7 +61,7 @@ const CX: U16F16 = U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2);
 /// Rows of the dense window: as many full sensor rows as the AXI SRAM holds.
 const WINDOW_ROWS: u16 = (MAX_CELLS / SENSOR.0 as usize) as u16;
 /// Which network runs: the largest dense window that fits the AXI SRAM, all 346 columns by
-/// 189 rows, centred (65 394 cells of 8 bytes, 523 152 B, 130 032 units); or
+/// 126 rows, centred (43 596 cells of 12 bytes, 523 152 B, 86 688 units); or
 /// `LayoutChoice::PaperBoxes`.
 const LAYOUT: LayoutChoice = LayoutChoice::Window {
     x0: 0,
@@ -80,7 +80,7 @@ const DEFAULTS: StreamConfig = StreamConfig {
     stride: 2,
     period_us: 1_000,
 };
-/// Cells the AXI SRAM holds (512 KiB of 8-byte cells).
+/// Cells the AXI SRAM holds (512 KiB of 12-byte cells).
 const MAX_CELLS: usize = 512 * 1024 / core::mem::size_of::<Cell>();
 /// SPI DMA ring size (bytes): 4 KiB is ~1 ms at 4 MB/s.
 const RING_BYTES: usize = 4096;

@@ -38,6 +38,7 @@ fn calibrated<L: Layout>(layout: L, data: &[u8]) {
     let cal = Calibration::for_units(
         U16F16::from_num(60),
         U16F16::from_num(31.5),
+        U16F16::from_num(11.5),
         layout.unit_count(),
     );
     let Ok(mut p) = pipeline::calibrated(&k, layout, &mut cells, cal) else {

@@ -137,6 +137,8 @@ pub struct Camera {
     pub focal: Option<f64>,
     /// Principal point column (px).
     pub cx: f64,
+    /// Principal point row (px).
+    pub cy: f64,
 }
 
 /// Largest sensor side the network takes (px): the 11-bit addresses of EVT 3.0 and of the
@@ -172,7 +174,7 @@ impl Camera {
     pub fn resolve(
         size: Option<(u16, u16)>,
         focal_px: Option<f64>,
-        cx: Option<f64>,
+        (cx, cy): (Option<f64>, Option<f64>),
         rec: &formats::Recording,
     ) -> Result<Self> {
         let info = formats::RecordingInfo {
@@ -182,7 +184,7 @@ impl Camera {
             gyro: None,
             format: rec.format,
         };
-        Self::resolve_with(size, focal_px, cx, &info, || Ok(rec.extent()))
+        Self::resolve_with(size, focal_px, (cx, cy), &info, || Ok(rec.extent()))
     }
 
     /// [`Camera::resolve`] from what a recording's header and folder say; `extent` gives the
@@ -193,7 +195,7 @@ impl Camera {
     pub fn resolve_with(
         size: Option<(u16, u16)>,
         focal_px: Option<f64>,
-        cx: Option<f64>,
+        (cx, cy): (Option<f64>, Option<f64>),
         info: &formats::RecordingInfo,
         extent: impl FnOnce() -> Result<Option<(u16, u16)>>,
     ) -> Result<Self> {
@@ -218,11 +220,17 @@ impl Camera {
             (None, Some(i)) => check_px(i.cx, "the recording's cx")?,
             (None, None) => (f64::from(width) - 1.0) / 2.0,
         };
+        let cy = match (cy, info.intrinsics) {
+            (Some(c), _) => check_px(c, "--cy")?,
+            (None, Some(i)) => check_px(i.cy, "the recording's cy")?,
+            (None, None) => (f64::from(height) - 1.0) / 2.0,
+        };
         Ok(Self {
             width,
             height,
             focal,
             cx,
+            cy,
         })
     }
 }
@@ -262,9 +270,6 @@ fn check_options(args: &Args) -> Result<(u32, Option<u32>)> {
         Some(ms) => bail!("--tau-a-ms must be in (0, 1000] (got {ms})"),
         None => None,
     };
-    if let Some(cy) = args.cy {
-        check_px(cy, "--cy")?;
-    }
     Ok((1_000_000 / args.rate_hz, tau_a_us))
 }
 
@@ -284,7 +289,7 @@ pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> 
     let camera = Camera::resolve_with(
         args.width.zip(args.height),
         args.focal_px,
-        args.cx,
+        (args.cx, args.cy),
         &info,
         || Ok(rec.extent()),
     )?;
@@ -328,11 +333,12 @@ pub fn run_stream(
         height: h,
         focal,
         cx,
+        cy,
     } = camera;
     let run = Run {
         args,
         focal,
-        cx,
+        centre: (cx, cy),
         period_us,
         tau_a_us,
     };
@@ -368,7 +374,8 @@ pub fn run_stream(
 struct Run<'a> {
     args: &'a Args,
     focal: Option<f64>,
-    cx: f64,
+    /// Principal point `(cx, cy)` in px.
+    centre: (f64, f64),
     period_us: u32,
     tau_a_us: Option<u32>,
 }
@@ -440,7 +447,8 @@ impl Run<'_> {
                     period_us,
                     ..Calibration::for_units(
                         U16F16::saturating_from_num(f),
-                        U16F16::saturating_from_num(self.cx),
+                        U16F16::saturating_from_num(self.centre.0),
+                        U16F16::saturating_from_num(self.centre.1),
                         layout.unit_count(),
                     )
                 };
@@ -525,7 +533,7 @@ impl Run<'_> {
                         p,
                         layout.clone(),
                         f,
-                        self.cx,
+                        self.centre,
                         period,
                         f64::from(ONSET_GAP_US),
                         f64::from(tau),
@@ -535,15 +543,15 @@ impl Run<'_> {
                     pieces.for_each(first, |ev| {
                         last = rel(ev.t_us);
                         y.event(last, ev.x, ev.y, ev.on, &mut got);
-                        for &(t, v, stale) in &got {
-                            out.push((t0 as f64 + t) * 1e-6, v, u8::from(stale));
+                        for &(t, v, flags) in &got {
+                            out.push((t0 as f64 + t) * 1e-6, v, flags);
                         }
                         got.clear();
                         out.flush_if_full()
                     })?;
                     y.finish(last, &mut got);
-                    for &(t, v, stale) in &got {
-                        out.push((t0 as f64 + t) * 1e-6, v, u8::from(stale));
+                    for &(t, v, flags) in &got {
+                        out.push((t0 as f64 + t) * 1e-6, v, flags);
                     }
                     outputs += y.samples;
                 }
@@ -737,16 +745,16 @@ pub fn open_recording(
     format: Option<Format>,
     size: Option<(u16, u16)>,
     focal_px: Option<f64>,
-    cx: Option<f64>,
+    centre: (Option<f64>, Option<f64>),
     needs_focal: bool,
 ) -> Result<(formats::EventReader, Camera)> {
     let mut reader = formats::EventReader::open(input, format, false)?;
     reader.complete_from_folder(formats::Needs {
         size: size.is_none(),
-        intrinsics: (needs_focal && focal_px.is_none()) || cx.is_none(),
+        intrinsics: (needs_focal && focal_px.is_none()) || centre.0.is_none() || centre.1.is_none(),
         gyro: false,
     })?;
-    let camera = Camera::resolve_with(size, focal_px, cx, &reader.info, || {
+    let camera = Camera::resolve_with(size, focal_px, centre, &reader.info, || {
         if !reader.is_regular_file() {
             bail!(
                 "cannot tell the sensor size of {} without reading it twice, and it is not a regular file: pass --width and --height",
@@ -781,7 +789,7 @@ pub fn run(args: Args) -> Result<()> {
         args.format,
         args.width.zip(args.height),
         args.focal_px,
-        args.cx,
+        (args.cx, args.cy),
         needs_focal,
     )?;
     let normalized = args.readout == ReadoutKind::Normalized;

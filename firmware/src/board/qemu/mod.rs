@@ -41,8 +41,8 @@ use crate::app::processing::Clock;
 use crate::app::{self, ByteSource, CostMeter, Overload, SourceError};
 use time::SysTickMeter;
 
-/// Network cells available in PSRAM (16 MiB / 8 B, rounded down).
-const MAX_CELLS: usize = 2_040_000;
+/// Network cells available in PSRAM (16 MiB of them).
+const MAX_CELLS: usize = 16 * 1024 * 1024 / core::mem::size_of::<Cell>();
 
 #[link_section = ".psram"]
 static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
@@ -76,6 +76,8 @@ struct Config {
     focal_bits: u32,
     /// Principal point column, U16F16 bits (px).
     cx_bits: u32,
+    /// Principal point row, U16F16 bits (px); `None`: the sensor's centre.
+    cy_bits: Option<u32>,
     period_us: u32,
     live: bool,
     paced: bool,
@@ -96,6 +98,7 @@ impl Config {
             window: None,
             focal_bits: 0,
             cx_bits: 0,
+            cy_bits: None,
             period_us: 1_000,
             live: false,
             paced: false,
@@ -129,6 +132,7 @@ impl Config {
                 }
                 "--focal-bits" => num(a).map(|v| c.focal_bits = v).is_some(),
                 "--cx-bits" => num(a).map(|v| c.cx_bits = v).is_some(),
+                "--cy-bits" => num(a).map(|v| c.cy_bits = Some(v)).is_some(),
                 "--link-bps" => num(a).map(|v| c.link_bps = v).is_some(),
                 "--icount-shift" => num(a)
                     .filter(|v| *v <= time::MAX_ICOUNT_SHIFT)
@@ -168,7 +172,10 @@ impl Config {
             height: self.height,
             focal_px: U16F16::from_bits(self.focal_bits),
             cx: U16F16::from_bits(self.cx_bits),
-            cy: U16F16::from_bits(u32::from(self.height.saturating_sub(1)) << 15),
+            cy: U16F16::from_bits(
+                self.cy_bits
+                    .unwrap_or(u32::from(self.height.saturating_sub(1)) << 15),
+            ),
             layout: match (self.boxes, self.window) {
                 (true, _) => LayoutChoice::PaperBoxes,
                 (false, None) => LayoutChoice::Dense,

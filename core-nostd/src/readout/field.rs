@@ -1,0 +1,531 @@
+//! Rotation from the whole field: decoded rates per region, a fit per column, mirrored sides.
+//!
+//! # The model
+//! A camera that yaws at `w` and also moves (forward translation `T_z`, pitch rate `w_x`, roll
+//! rate `w_z`) sees, at normalised image coordinates `X = (x - c_x)/f`, `Y = (y - c_y)/f` and
+//! depth `Z`, a horizontal flow that a burst decodes as the rotation-equivalent rate
+//! `r = -u / (f (1 + X²)) = w - (X T_z / Z + w_x X Y + w_z Y) / (1 + X²)`.
+//! - Yaw is the same everywhere.
+//! - Within one column band (`X` about fixed), roll and pitch are linear in `Y`, and so is the
+//!   translation flow of a ground plane (`1/Z ∝ Y` below the horizon, 0 for far scenery above
+//!   it): a fit of `r` against `Y` with separate slopes above and below the principal row has
+//!   the yaw rate, plus what is odd in `X`, as its intercept at `Y = 0`.
+//! - What is odd in `X` (forward translation of scenery that is not a ground plane: zero at the
+//!   focus of expansion, opposite signs either side) cancels in the mean of the two mirrored
+//!   column bands.
+//! - An object moving on its own moves only its part of the view, and a rotation moves all of
+//!   it: the rotation must hold in several column bands.
+//!
+//! Assumed: the principal point is known and the focus of expansion is near it (the camera
+//! moves along its optical axis); mirrored columns see scenery at similar depths. Lateral
+//! translation (side-slip) moves far scenery not at all and near scenery like a yaw: it is not
+//! separated.
+//!
+//! # The estimator
+//! - The field is cut into [`REGIONS`]: [`COL_BANDS`] bands of columns either side of `c_x`
+//!   times [`ROW_BANDS`] bands of rows either side of `c_y`, mirror-symmetric about the
+//!   principal point and spanning the layout's units.
+//! - Each region keeps leaky histograms of the decoded `log2 |r|` per sign ([`BINS`] bins from
+//!   0.01 to 20 rad/s), one set per [`Population`]. Its value is the signed median and its
+//!   precision the interquartile range over the number of samples: where edges also move
+//!   vertically (the ground under forward motion) a horizontal unit suffers the aperture
+//!   problem and its decodes spread widely around the true horizontal flow, so such regions
+//!   count little.
+//! - Per column band and side: the inverse-variance weighted least-squares intercept of the
+//!   region values against `Y` (slopes with a weak prior), then the mean of the two sides.
+//! - The output is the inverse-variance weighted median of the column bands' values when at
+//!   least `support` bands have one, else "no rotation evidence". It comes from the population
+//!   that decodes more bursts per second: the paper's units, or the slow units in a slow scene. A layout with no mirrored bands (such
+//!   as two boxes placed at random) uses each band's side alone, with no spread gate.
+//!
+//! # Leaky histograms without touching every bin
+//! Instead of decaying every bin each period, new samples get a weight that grows by
+//! `e^(period/tau_A)` per period; when it passes 2, every bin and the weight are halved. The
+//! ratios the estimator uses are those of histograms decayed every period, up to the halving's
+//! truncation.
+
+use crate::exp_table::ExpDecay;
+use crate::log2::exp2_q16;
+
+/// Column bands either side of the principal point.
+pub const COL_BANDS: usize = 4;
+/// Row bands either side of the principal point.
+pub const ROW_BANDS: usize = 3;
+/// Regions of the field: 2 sides x [`COL_BANDS`] x 2 sides x [`ROW_BANDS`].
+pub const REGIONS: usize = 4 * COL_BANDS * ROW_BANDS;
+/// Histogram bins per region and sign.
+pub const BINS: usize = 64;
+
+/// Lowest and highest |rate| the histograms resolve (rad/s); outside values fall into the end
+/// bins.
+pub const RATE_RANGE: (f32, f32) = (0.01, 20.0);
+/// `log2(0.01)` and `log2(20)` in Q16.16 (the histograms' edges).
+pub const LOG2_LO: i32 = -435_413;
+/// See [`LOG2_LO`].
+pub const LOG2_HI: i32 = 283_242;
+/// Bin width in Q16.16 log2 units.
+pub const BIN_W: i32 = (LOG2_HI - LOG2_LO) / BINS as i32;
+
+/// Time constant of the recent decode rate (µs) that tells a stopped camera.
+pub const SHORT_TAU_US: u32 = 20_000;
+/// A population whose recent decode rate is below `1 / STOPPED_RATIO` of its histograms'
+/// rate has stopped seeing motion.
+const STOPPED_RATIO: u64 = 8;
+
+/// Regions and bands are weighed by `WEIGHT_SCALE / variance` (variance in Q32 rad²/s²).
+const WEIGHT_SCALE: u128 = 1 << 40;
+
+/// Prior information on the slopes of a column's fit (weight units x Q16 x Y² in Q16): a slope
+/// of about 2 rad/s per unit of `Y` is one standard deviation.
+const SLOPE_PRIOR: u128 = (WEIGHT_SCALE >> 34) << 16;
+
+/// Weight of a sample when the histograms were last renormalised (Q16 = one sample).
+const UNIT_WEIGHT: u32 = 1 << 16;
+
+/// Settings of the field estimator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FieldSettings {
+    /// Decoded bursts (leaky, Q16) a region needs before it has a value.
+    pub min_samples_q16: u32,
+    /// Smallest interquartile range a region is credited with (Q16 rad/s).
+    pub spread_floor_q16: u32,
+    /// Distinct column bands that must hold a mirrored pair before the field reports a
+    /// rotation (capped by the bands the layout covers on both sides).
+    pub support: u8,
+}
+
+impl FieldSettings {
+    /// The product's settings: 4 samples per region, a spread floor of 0.02 rad/s, support in
+    /// 2 column bands.
+    pub const DEFAULT: Self = Self {
+        min_samples_q16: 4 << 16,
+        spread_floor_q16: 1_311,
+        support: 2,
+    };
+}
+
+/// Where the regions lie: the principal point and the band widths, in Q16 pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FieldGeometry {
+    /// Principal point (Q16 px).
+    pub cx_q16: i64,
+    /// Principal point row (Q16 px).
+    pub cy_q16: i64,
+    /// Width of a column band (Q16 px, at least 1 px).
+    pub col_w_q16: i64,
+    /// Height of a row band (Q16 px, at least 1 px).
+    pub row_h_q16: i64,
+    /// Focal length (Q16 px, at least 1 px).
+    pub focal_q16: i64,
+}
+
+impl FieldGeometry {
+    /// Bands that split the span `[x_min, x_max] x [y_min, y_max]` (pixels with units) into
+    /// equal bands either side of the principal point `(cx, cy)` (Q16 px).
+    pub fn spanning(
+        cx_q16: i64,
+        cy_q16: i64,
+        focal_q16: i64,
+        x: (u16, u16),
+        y: (u16, u16),
+    ) -> Self {
+        let half = |c: i64, (lo, hi): (u16, u16)| -> i64 {
+            let lo = i64::from(lo) << 16;
+            let hi = (i64::from(hi) + 1) << 16;
+            (c - lo).max(hi - c).max(1 << 16)
+        };
+        Self {
+            cx_q16,
+            cy_q16,
+            col_w_q16: (half(cx_q16, x) / COL_BANDS as i64).max(1 << 16),
+            row_h_q16: (half(cy_q16, y) / ROW_BANDS as i64).max(1 << 16),
+            focal_q16: focal_q16.max(1 << 16),
+        }
+    }
+
+    /// Normalised row `Y = (y - c_y) / f` at the centre of row band `row`, in Q16 (positive;
+    /// the half above the principal point uses its negative).
+    pub fn row_centre_abs_q16(&self, row: usize) -> i128 {
+        let dy = (2 * row as i128 + 1) * i128::from(self.row_h_q16) / 2; // Q16 px
+        (dy << 16) / i128::from(self.focal_q16.max(1))
+    }
+
+    /// Region of pixel `(x, y)`: index `((side · COL_BANDS + band) · 2 + vside) · ROW_BANDS + row`.
+    #[inline]
+    pub fn region(&self, x: u16, y: u16) -> usize {
+        let dx = (i64::from(x) << 16) + (1 << 15) - self.cx_q16;
+        let dy = (i64::from(y) << 16) + (1 << 15) - self.cy_q16;
+        // Widths are at least 1 px by construction; a hand-made zero puts all in the last band.
+        let band = (dx.unsigned_abs().checked_div(self.col_w_q16.unsigned_abs()))
+            .map_or(COL_BANDS - 1, |b| (b as usize).min(COL_BANDS - 1));
+        let row = (dy.unsigned_abs().checked_div(self.row_h_q16.unsigned_abs()))
+            .map_or(ROW_BANDS - 1, |r| (r as usize).min(ROW_BANDS - 1));
+        ((usize::from(dx >= 0) * COL_BANDS + band) * 2 + usize::from(dy >= 0)) * ROW_BANDS + row
+    }
+}
+
+/// Index of region (side, band, vside, row).
+#[inline]
+const fn region_index(side: usize, band: usize, vside: usize, row: usize) -> usize {
+    ((side * COL_BANDS + band) * 2 + vside) * ROW_BANDS + row
+}
+
+/// A region's signed median rate (Q16 rad/s) and the variance of that median (Q32, from the
+/// interquartile range over the number of samples: the aperture problem makes decoded rates
+/// spread where edges also move vertically, Cauchy-like around the true horizontal flow).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct RegionStats {
+    median: i64,
+    variance: u64,
+}
+
+/// What the field says at one output time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FieldEstimate {
+    /// A rotation (rad/s, Q16, positive = turning right).
+    Rotation(i32),
+    /// No rotation evidence spread over the field.
+    NoEvidence,
+}
+
+/// Which units a decoded rate came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Population {
+    /// The paper's units (`tau_F` = 20 ms).
+    Fast = 0,
+    /// The slow units (`tau_F` = [`crate::params::TAU_SLOW_US`]).
+    Slow = 1,
+}
+
+/// The leaky per-region histograms, one set per [`Population`], and the estimator (12 KiB of
+/// bins).
+pub struct Field {
+    geometry: FieldGeometry,
+    settings: FieldSettings,
+    /// `[population][region][sign][bin]`, sign 0 = negative, 1 = positive.
+    hist: [[[[u32; BINS]; 2]; REGIONS]; 2],
+    /// Current weight of one sample per population (Q16; in `[1, 2)` samples after
+    /// renormalisation).
+    weight: [u32; 2],
+    /// Per-period weight growth `e^(period / tau)` per population, in Q1.31 of half its value
+    /// (so that values up to 4 fit).
+    grow_half_q31: [u32; 2],
+    /// Histogram time constant per population (µs).
+    tau_us: [u32; 2],
+    /// Decodes per population since the last output.
+    recent: [u32; 2],
+    /// Decodes per population, leaky over [`SHORT_TAU_US`] (Q16 samples).
+    short: [u32; 2],
+    /// Per-period decay of `short` (Q1.31).
+    short_keep_q31: u32,
+    /// Column bands with units on both sides (regions that can pair).
+    paired_bands: u8,
+}
+
+impl Field {
+    /// An empty field whose histograms have time constant `tau_us` per population (µs), aged
+    /// by `period_us` per output; `paired_bands` the column bands where the layout has units
+    /// either side.
+    pub fn new(
+        geometry: FieldGeometry,
+        settings: FieldSettings,
+        tau_us: [u32; 2],
+        period_us: u32,
+        paired_bands: u8,
+    ) -> Self {
+        let keep = |tau: u32| ExpDecay::new(tau).decay_bits(period_us);
+        let keep_q31 = tau_us.map(keep);
+        // grow = 1/keep; stored halved in Q1.31: 2^62 / keep / 2.
+        let grow = |k: u32| ((1u64 << 61) / u64::from(k.max(1))).min(u64::from(u32::MAX)) as u32;
+        let [fast, slow] = keep_q31;
+        Self {
+            geometry,
+            settings,
+            hist: [[[[0; BINS]; 2]; REGIONS]; 2],
+            weight: [UNIT_WEIGHT; 2],
+            grow_half_q31: [grow(fast), grow(slow)],
+            tau_us,
+            recent: [0; 2],
+            short: [0; 2],
+            short_keep_q31: keep(SHORT_TAU_US),
+            paired_bands,
+        }
+    }
+
+    /// The geometry.
+    pub fn geometry(&self) -> &FieldGeometry {
+        &self.geometry
+    }
+
+    /// Adds one decoded burst of population `pop` at pixel `(x, y)`: `log2 |r|` (Q16.16) and
+    /// the sign of `r`.
+    #[inline]
+    pub fn add(&mut self, pop: Population, x: u16, y: u16, log2_rate: i32, positive: bool) {
+        let bin = (log2_rate.saturating_sub(LOG2_LO) / BIN_W).clamp(0, BINS as i32 - 1) as usize;
+        let region = self.geometry.region(x, y);
+        let w = self
+            .weight
+            .get(pop as usize)
+            .copied()
+            .unwrap_or(UNIT_WEIGHT);
+        if let Some(b) = self
+            .hist
+            .get_mut(pop as usize)
+            .and_then(|h| h.get_mut(region))
+            .and_then(|h| h.get_mut(usize::from(positive)))
+            .and_then(|h| h.get_mut(bin))
+        {
+            *b = b.saturating_add(w);
+        }
+        if let Some(c) = self.recent.get_mut(pop as usize) {
+            *c = c.saturating_add(1);
+        }
+    }
+
+    /// Ends one output period: ages everything seen so far by one period.
+    pub fn age(&mut self) {
+        for (short, recent) in self.short.iter_mut().zip(self.recent.iter_mut()) {
+            *short = ((u64::from(*short) * u64::from(self.short_keep_q31)) >> 31)
+                .saturating_add(u64::from(*recent) << 16)
+                .min(u64::from(u32::MAX)) as u32;
+            *recent = 0;
+        }
+        for ((weight, grow), hist) in self
+            .weight
+            .iter_mut()
+            .zip(self.grow_half_q31.iter())
+            .zip(self.hist.iter_mut())
+        {
+            let mut w = (u64::from(*weight) * u64::from(*grow)) >> 30;
+            // Halve as often as needed (more than once when the period exceeds tau ln 2).
+            let mut shift = 0u32;
+            while w >= u64::from(2 * UNIT_WEIGHT) && shift < 32 {
+                w >>= 1;
+                shift += 1;
+            }
+            if shift > 0 {
+                for b in hist.iter_mut().flatten().flatten() {
+                    *b = b.checked_shr(shift).unwrap_or(0);
+                }
+            }
+            *weight = w.clamp(1, u64::from(2 * UNIT_WEIGHT)) as u32;
+        }
+    }
+
+    /// One population's statistics in a region, or `None` with fewer than `min_samples`.
+    fn population_value(&self, pop: Population, region: usize) -> Option<RegionStats> {
+        let [neg, pos] = self.hist.get(pop as usize)?.get(region)?;
+        let total: u64 = neg.iter().chain(pos.iter()).map(|&b| u64::from(b)).sum();
+        let weight = u64::from(
+            self.weight
+                .get(pop as usize)
+                .copied()
+                .unwrap_or(UNIT_WEIGHT),
+        );
+        let samples_q16 = (total << 16) / weight.max(1);
+        if total == 0 || samples_q16 < u64::from(self.settings.min_samples_q16) {
+            return None;
+        }
+        // Quartiles of the signed rate: walk the negative bins from the largest |r| down, then
+        // the positive bins up.
+        let targets = [total / 4, total / 2, total - total / 4];
+        let mut out = [0i64; 3];
+        let mut found = 0usize;
+        let mut acc = 0u64;
+        let signed_bins = neg
+            .iter()
+            .enumerate()
+            .rev()
+            .map(|(i, &m)| (i, m, false))
+            .chain(pos.iter().enumerate().map(|(i, &m)| (i, m, true)));
+        for (i, m, positive) in signed_bins {
+            let m = u64::from(m);
+            while found < 3 && m > 0 && acc + m >= targets.get(found).copied().unwrap_or(0) {
+                let need = targets.get(found).copied().unwrap_or(0).saturating_sub(acc);
+                // Position within the bin along increasing signed rate.
+                let frac_q16 = ((need << 16) / m) as i64;
+                let frac_abs = if positive {
+                    frac_q16
+                } else {
+                    (1 << 16) - frac_q16
+                };
+                let pos_q16 = ((i as i64) << 16) + frac_abs;
+                let l2 = i64::from(LOG2_LO) + ((pos_q16 * i64::from(BIN_W)) >> 16);
+                let v = i64::from(exp2_q16(l2.clamp(i64::from(i32::MIN), 0x7FFF_FFFF) as i32));
+                if let Some(o) = out.get_mut(found) {
+                    *o = if positive { v } else { -v };
+                }
+                found += 1;
+            }
+            acc += m;
+            if found == 3 {
+                break;
+            }
+        }
+        let [q1, signed_median, q3] = out;
+        let median = signed_median;
+        let samples = (samples_q16 >> 16).max(1);
+        let iqr = (q3 - q1)
+            .unsigned_abs()
+            .max(u64::from(self.settings.spread_floor_q16));
+        Some(RegionStats {
+            median,
+            variance: iqr.saturating_mul(iqr) / samples,
+        })
+    }
+
+    /// The estimate from everything seen so far, from the population that decodes more bursts
+    /// per second: the paper's units where edges move fast, the slow units in a slow scene.
+    pub fn estimate(&self) -> FieldEstimate {
+        let pop = if self.rate(Population::Fast) >= self.rate(Population::Slow) {
+            Population::Fast
+        } else {
+            Population::Slow
+        };
+        // When the decodes have all but stopped (the camera stopped turning), the histograms
+        // still remember the motion for a few time constants: say nothing rather than repeat it.
+        let short = self.short.get(pop as usize).copied().unwrap_or(0);
+        let short_rate = u64::from(short) / u64::from(SHORT_TAU_US);
+        if short_rate.saturating_mul(STOPPED_RATIO) < self.rate(pop) {
+            return FieldEstimate::NoEvidence;
+        }
+        self.population_estimate(pop)
+    }
+
+    /// Decoded bursts per µs of a population, averaged over its histograms' time constant
+    /// (Q16): the slow units may answer only where edges are mostly slow.
+    fn rate(&self, pop: Population) -> u64 {
+        let i = pop as usize;
+        let mass: u64 = self.hist.get(i).map_or(0, |h| {
+            h.iter().flatten().flatten().map(|&b| u64::from(b)).sum()
+        });
+        let w = u64::from(self.weight.get(i).copied().unwrap_or(UNIT_WEIGHT).max(1));
+        let tau = u64::from(self.tau_us.get(i).copied().unwrap_or(1).max(1));
+        ((mass << 16) / w) / tau
+    }
+
+    /// One population's estimate.
+    fn population_estimate(&self, pop: Population) -> FieldEstimate {
+        // (value, weight) per column band: the mean of its two sides' intercepts.
+        let mut values = [(0i64, 0u64); COL_BANDS];
+        let mut n = 0usize;
+        for band in 0..COL_BANDS {
+            let fit = |side: usize| self.column_intercept(pop, side, band);
+            let est = if self.paired_bands == 0 {
+                // No mirrored regions: whichever side has units.
+                match (fit(0), fit(1)) {
+                    (Some(a), None) | (None, Some(a)) => Some(a),
+                    (Some((a, va)), Some((b, vb))) => Some(((a + b) / 2, (va + vb) / 4)),
+                    (None, None) => None,
+                }
+            } else {
+                match (fit(0), fit(1)) {
+                    (Some((a, va)), Some((b, vb))) => Some(((a + b) / 2, (va + vb) / 4)),
+                    _ => None,
+                }
+            };
+            if let (Some((v, var)), Some(slot)) = (est, values.get_mut(n)) {
+                let w = (WEIGHT_SCALE / var.max(1)).min(u128::from(u64::MAX)) as u64;
+                *slot = (
+                    v.clamp(i128::from(i32::MIN), i128::from(i32::MAX)) as i64,
+                    w,
+                );
+                n += 1;
+            }
+        }
+        if self.paired_bands > 0 && (n as u8) < self.settings.support.min(self.paired_bands).max(1)
+        {
+            return FieldEstimate::NoEvidence;
+        }
+        let Some(v) = values.get(..n) else {
+            return FieldEstimate::NoEvidence;
+        };
+        let total: u64 = v.iter().map(|&(_, w)| w).fold(0u64, u64::saturating_add);
+        if total == 0 {
+            return FieldEstimate::NoEvidence;
+        }
+        // Weighted median: the smallest value whose weight, with that of all values below it,
+        // reaches half the total (no sort: at most COL_BANDS values, and no panic path).
+        let mut best: Option<i64> = None;
+        for &(x, _) in v.iter() {
+            let below: u64 = v
+                .iter()
+                .filter(|&&(y, _)| y <= x)
+                .map(|&(_, w)| w)
+                .fold(0u64, u64::saturating_add);
+            if below >= total - total / 2 && best.is_none_or(|b| x < b) {
+                best = Some(x);
+            }
+        }
+        let m = best.unwrap_or(0);
+        // The fits extrapolate to Y = 0; nothing outside the histograms' range is measured.
+        let max = i64::from(exp2_q16(LOG2_HI));
+        FieldEstimate::Rotation(m.clamp(-max, max) as i32)
+    }
+
+    /// The rate at the principal row (`Y = 0`) of one column band on one side, and its
+    /// variance (Q16 rad/s, Q32): a weighted least-squares fit of the region medians
+    /// `r = w + a Y (above) + b Y (below)`. Roll (`∝ Y`), pitch (`∝ X Y`) and the translation
+    /// flow of a ground plane (`∝ X Y` below the horizon) are all linear in `Y` within a
+    /// column band, so the intercept is the yaw rate plus what stays odd in `X` (which the
+    /// mirrored side cancels). The slopes have a prior ([`SLOPE_PRIOR`]) so that one row band
+    /// per half still counts.
+    fn column_intercept(&self, pop: Population, side: usize, band: usize) -> Option<(i128, u128)> {
+        // Sums in i128: weights are WEIGHT_SCALE / variance, Y in Q16, r in Q16.
+        let (mut s, mut r_sum) = (0i128, 0i128);
+        let mut half = [(0i128, 0i128, 0i128); 2]; // (Σ w Y, Σ w Y², Σ w r Y) above, below
+        let mut points = 0u32;
+        for vside in 0..2 {
+            for row in 0..ROW_BANDS {
+                let Some(st) = self.population_value(pop, region_index(side, band, vside, row))
+                else {
+                    continue;
+                };
+                let w = (WEIGHT_SCALE / u128::from(st.variance.max(1))) as i128;
+                if w == 0 {
+                    continue;
+                }
+                let y = if vside == 0 {
+                    -self.geometry.row_centre_abs_q16(row)
+                } else {
+                    self.geometry.row_centre_abs_q16(row)
+                };
+                let r = i128::from(st.median);
+                s += w;
+                r_sum += w * r;
+                if let Some((sy, syy, sry)) = half.get_mut(vside) {
+                    *sy += w * y;
+                    *syy += (w * y * y) >> 16;
+                    *sry += (w * r * y) >> 16;
+                }
+                points += 1;
+            }
+        }
+        if points == 0 {
+            return None;
+        }
+        // Eliminate the slopes (Schur complement): each half contributes
+        // -Σ(wY)²/(Σ wY² + prior) to the intercept's information and the matching term to
+        // its right-hand side.
+        let (mut info, mut rhs) = (s << 16, r_sum << 16);
+        // (rhs is in Q32 x weight, info in Q16 x weight: their ratio is the rate in Q16.)
+        for &(sy, syy, sry) in &half {
+            let denom = syy + (SLOPE_PRIOR as i128);
+            if sy == 0 || denom <= 0 {
+                continue;
+            }
+            let (Some(yy), Some(ry)) = (sy.checked_mul(sy), sy.checked_mul(sry)) else {
+                return None;
+            };
+            info -= yy / denom;
+            rhs -= (ry / denom) << 16;
+        }
+        if info <= 0 {
+            return None;
+        }
+        // info is in weight x Q16; omega = rhs / info in Q16; variance = SCALE / info (Q32).
+        let omega = rhs / info;
+        let variance = ((WEIGHT_SCALE << 16) / info as u128).max(1);
+        Some((omega, variance))
+    }
+}
