@@ -312,7 +312,8 @@ fn malformed_sidecars_matter_only_when_needed() {
     let out = d.path().join("y.csv");
     let g = geometry();
     let o = run(args![
-        "run", input, "--out", out, g[0], g[1], g[2], g[3], g[4], g[5], "--cx", "31.5"
+        "run", input, "--out", out, g[0], g[1], g[2], g[3], g[4], g[5], "--cx", "31.5", "--cy",
+        "15.5"
     ]);
     assert_ok(&o);
     let lines = std::fs::read_to_string(&out).unwrap().lines().count();

@@ -8,16 +8,23 @@ use std::process::Command;
 
 const BIN: &str = env!("CARGO_BIN_EXE_host-sim");
 
-/// Edges sweeping right to left over a 64 x 32 sensor: `sweeps` sweeps of 0.5 s starting every
-/// `every_us`, from `t0`; between sweeps one background event per 200 ms.
+/// A pattern of edges 8 px apart sweeping right to left over a 64 x 32 sensor at 100 px/s (the
+/// whole view moves, as under a yaw): `sweeps` sweeps of 0.5 s starting every `every_us`, from
+/// `t0`; between sweeps one background event per 200 ms.
 fn events(out: &mut String, t0: u64, sweeps: u64, every_us: u64) {
     for s in 0..sweeps {
         let start = t0 + s * every_us;
         for k in 0..500u64 {
+            if k % 10 != 0 {
+                continue;
+            }
             let t = start + k * 1000;
-            let x = 62 - (k / 10) % 60;
-            for y in (0..32).step_by(4) {
-                let _ = writeln!(out, "{t},{x},{y},{}", u8::from(k % 20 < 10));
+            let shift = k / 10;
+            for x in (0..64u64).filter(|x| (x + shift) % 8 == 0) {
+                let on = u8::from((x + shift) % 16 == 0);
+                for y in (0..32).step_by(2) {
+                    let _ = writeln!(out, "{t},{x},{y},{on}");
+                }
             }
         }
         let mut t = start + 600_000;
@@ -115,8 +122,8 @@ fn a_long_recording_with_a_gap_and_a_jump_back_is_its_pieces_one_by_one() {
     // B runs through its 76 minutes: one sample per 10 ms up to its last event, and the sweeps
     // late in B are decoded (the clock wrapped on the way).
     let b = rows(&d.join("piece1_yaw.csv"));
-    // B's last event is 1 ms before b_end.
-    let span = (b_end - 1000 - b_start) / 10_000;
+    // B's last event is 10 ms before b_end.
+    let span = (b_end - 10_000 - b_start) / 10_000;
     assert_eq!(b.len() as u64, span);
     let late_nonzero = b
         .iter()

@@ -241,7 +241,7 @@ impl Ground {
 fn floor_i32(x: f32) -> i32 {
     let i = x as i32;
     if (i as f32) > x {
-        i - 1
+        i.saturating_sub(1)
     } else {
         i
     }
