@@ -428,6 +428,9 @@ pub struct OracleYaw<L: crate::layout::Layout> {
     next_out: Option<f64>,
     /// Time of the first output (µs).
     first_out: f64,
+    /// Outputs since the field was last read, and that reading.
+    phase: u32,
+    last: Option<f64>,
     /// Decodes per population since the last output, and leaky over `SHORT_TAU_US`.
     recent: [f64; 2],
     short: [f64; 2],
@@ -489,6 +492,8 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             hist: std::vec![[[[0.0; ORACLE_BINS]; 2]; 2]; 4 * COLS * ROWS],
             next_out: None,
             first_out: 0.0,
+            phase: 0,
+            last: None,
             recent: [0.0; 2],
             short: [0.0; 2],
             last_event: 0.0,
@@ -658,7 +663,13 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
                 > f64::from(crate::readout::calibrated::WARMUP_US.div_ceil(self.period as u32))
                     * self.period
                     - 0.5 * self.period;
-            let est = if warm { self.estimate() } else { None };
+            let refresh =
+                (crate::readout::calibrated::REFRESH_US / (self.period as u32).max(1)).max(1);
+            if self.phase == 0 {
+                self.last = self.estimate();
+            }
+            self.phase = (self.phase + 1) % refresh;
+            let est = if warm { self.last } else { None };
             let slow_tau = self
                 .tau_a
                 .max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));

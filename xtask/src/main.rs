@@ -29,6 +29,7 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("test") => test(),
         Some("demo") => demo(&args[1..]),
+        Some("regimes") => regimes(&args[1..]),
         Some("setup") => setup(),
         Some("firmware") => firmware::firmware(&args[1..]),
         Some("fuzz") => fuzz::fuzz(&args[1..]),
@@ -59,6 +60,8 @@ fn print_help() {
          tasks:\n  \
          test    fmt, clippy, every test, the Cortex-M builds (what CI runs)\n  \
          demo    the main job on the built-in default input; results in out/\n  \
+         regimes [--seed N]   the readout in every flight regime (car, drone, hover, objects,\n          \
+         rotation): rendered, run and judged, plots in out/regimes/\n  \
          setup   install the system packages the tools need (apt, when root)\n  \
          firmware [--board qemu|stm32f405|stm32h743]   build the firmware, print its flash/RAM use\n  \
          flash [--board stm32f405|stm32h743]   build and run on the board through probe-rs (defmt over RTT)\n  \
@@ -217,5 +220,50 @@ fn demo(_args: &[String]) -> Result<()> {
         yaw.display(),
         out.join("eval.png").display()
     );
+    Ok(())
+}
+
+/// The readout in every flight regime: each scene rendered by `host-sim synth --regime R`
+/// (seed `--seed`, default 1, 4 s, DAVIS346), run by `host-sim run` and judged by
+/// `host-sim eval` against its ground truth. Results in `out/regimes/<regime>/` (`scene/`,
+/// `yaw.csv`, `eval.png`).
+fn regimes(args: &[String]) -> Result<()> {
+    let seed = match args {
+        [] => 1,
+        [flag, n] if flag == "--seed" => n.parse().context("--seed: not a number")?,
+        _ => bail!("usage: cargo xtask regimes [--seed N]"),
+    };
+    let out = root().join("out/regimes");
+    for regime in ["car", "drone", "hover", "objects", "rotation"] {
+        let dir = out.join(regime);
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        let scene = dir.join("scene");
+        let mut c = firmware::host_sim();
+        c.args(["synth", "--regime", regime, "--duration", "4", "--seed"])
+            .arg(seed.to_string())
+            .arg("--out")
+            .arg(&scene);
+        run(
+            &format!("host-sim synth --regime {regime} --seed {seed}"),
+            c,
+        )?;
+        let yaw = dir.join("yaw.csv");
+        let mut c = firmware::host_sim();
+        c.arg("run")
+            .arg(scene.join("events.txt"))
+            .arg("--out")
+            .arg(&yaw);
+        run(&format!("host-sim run ({regime})"), c)?;
+        let mut c = firmware::host_sim();
+        c.args(["eval", "--yaw"])
+            .arg(&yaw)
+            .arg("--gt")
+            .arg(scene.join("gt.csv"))
+            .arg("--plot")
+            .arg(dir.join("eval.png"));
+        run(&format!("host-sim eval ({regime})"), c)?;
+    }
+    println!("xtask: regimes done: {}", out.display());
     Ok(())
 }

@@ -64,19 +64,29 @@ const SLOW_TRACE_LIMIT: Trace = Trace::const_from_int(8);
 /// edges crossing.
 pub const WARMUP_US: u32 = 20_000;
 
+/// The field is read at most this often (µs): every 4th output at 1 kHz. Reading it costs about
+/// as much as a few hundred events on a Cortex-M4, and its histograms change over `tau_A`
+/// (10 ms), not over one period.
+pub const REFRESH_US: u32 = 4_000;
+
 /// Smallest histogram time constant of the slow units (µs): they see few edges per period.
 pub const SLOW_TAU_A_US: u32 = 100_000;
 
-/// Layouts with fewer units than this are sparse (see [`Calibration::for_units`]).
-pub const SPARSE_UNITS: usize = 10_000;
+/// Units of the full DAVIS346 dense layout (346 x 260, stride 2), for which `tau_A` = 10 ms.
+pub const FULL_DENSE_UNITS: usize = 178_880;
 
-/// Default readout time constant (µs) for a layout of `units` units: 10 ms, or 100 ms for
-/// sparse layouts (see [`Calibration::for_units`]).
+/// Default readout time constant (µs) for a layout of `units` units: 10 ms for the full dense
+/// DAVIS346 layout, longer in proportion for layouts with fewer units (their regions see fewer
+/// edges per millisecond), at most 100 ms (a window of a few rows, the paper's 200-unit boxes).
 pub const fn default_tau_a_us(units: usize) -> u32 {
-    if units < SPARSE_UNITS {
+    let units = if units == 0 { 1 } else { units };
+    let tau = 10_000u64 * FULL_DENSE_UNITS as u64 / units as u64;
+    if tau < 10_000 {
+        10_000
+    } else if tau > 100_000 {
         100_000
     } else {
-        10_000
+        tau as u32
     }
 }
 
@@ -111,9 +121,7 @@ impl Calibration {
         }
     }
 
-    /// Defaults for a layout of `units` units: `tau_A` from [`default_tau_a_us`] (10 ms for
-    /// dense layouts, 100 ms for sparse ones such as the paper's 200-unit boxes, which see far
-    /// fewer edges per millisecond).
+    /// Defaults for a layout of `units` units: `tau_A` from [`default_tau_a_us`].
     pub fn for_units(focal_px: U16F16, cx: U16F16, cy: U16F16, units: usize) -> Self {
         Self {
             tau_a_us: default_tau_a_us(units),
@@ -140,6 +148,12 @@ pub struct Calibrated {
     slow_scene_own: Trace,
     /// Outputs still to suppress (see [`WARMUP_US`]).
     warmup_outputs: u32,
+    /// Outputs per reading of the field (see [`REFRESH_US`]), at least 1.
+    refresh: u32,
+    /// Outputs since the last reading, modulo `refresh`.
+    phase: u32,
+    /// The last reading.
+    last: (I16F16, u8),
     /// Decoded bursts so far.
     pub samples: u64,
     /// Of which from the slow units.
@@ -174,6 +188,9 @@ impl Calibrated {
             min_drive: min_burst_drive(kernel),
             slow_scene_own: Trace::saturating_from_num(p.w_fac).saturating_add(SLOW_SCENE_MARGIN),
             warmup_outputs: WARMUP_US.div_ceil(cal.period_us.max(1)),
+            refresh: (REFRESH_US / cal.period_us.max(1)).max(1),
+            phase: 0,
+            last: (I16F16::ZERO, flags::NO_EVIDENCE),
             samples: 0,
             slow_samples: 0,
         }
@@ -322,15 +339,23 @@ impl NetSink for Calibrated {
 
 impl Readout for Calibrated {
     fn output(&mut self, _t_us: u32) -> (I16F16, u8) {
-        let est = self.field.estimate();
+        // The field is read every `refresh` outputs (its histograms change over tau_A, not
+        // over one period); the outputs between repeat the last reading.
+        if self.phase == 0 {
+            self.last = match self.field.estimate() {
+                FieldEstimate::Rotation(v) => (I16F16::from_bits(v), 0),
+                FieldEstimate::NoEvidence => (I16F16::ZERO, flags::NO_EVIDENCE),
+            };
+        }
+        self.phase += 1;
+        if self.phase >= self.refresh {
+            self.phase = 0;
+        }
         self.field.age();
         if self.warmup_outputs > 0 {
             self.warmup_outputs -= 1;
             return (I16F16::ZERO, flags::NO_EVIDENCE);
         }
-        match est {
-            FieldEstimate::Rotation(v) => (I16F16::from_bits(v), 0),
-            FieldEstimate::NoEvidence => (I16F16::ZERO, flags::NO_EVIDENCE),
-        }
+        self.last
     }
 }

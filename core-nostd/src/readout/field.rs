@@ -72,12 +72,15 @@ pub const SHORT_TAU_US: u32 = 20_000;
 /// rate has stopped seeing motion.
 const STOPPED_RATIO: u64 = 8;
 
-/// Regions and bands are weighed by `WEIGHT_SCALE / variance` (variance in Q32 rad²/s²).
-const WEIGHT_SCALE: u128 = 1 << 40;
+/// Regions and bands are weighed by `WEIGHT_SCALE / variance` (variance in Q32 rad²/s²),
+/// at most [`MAX_WEIGHT`] (a standard deviation of 0.004 rad/s).
+const WEIGHT_SCALE: u64 = 1 << 36;
+/// See [`WEIGHT_SCALE`].
+const MAX_WEIGHT: u64 = 1 << 20;
 
-/// Prior information on the slopes of a column's fit (weight units x Q16 x Y² in Q16): a slope
-/// of about 2 rad/s per unit of `Y` is one standard deviation.
-const SLOPE_PRIOR: u128 = (WEIGHT_SCALE >> 34) << 16;
+/// Prior information on the slopes of a column's fit (weight x Y² in Q12): a slope of 2 rad/s
+/// per unit of `Y` is one standard deviation.
+const SLOPE_PRIOR: i64 = ((WEIGHT_SCALE >> 34) << 12) as i64;
 
 /// Weight of a sample when the histograms were last renormalised (Q16 = one sample).
 const UNIT_WEIGHT: u32 = 1 << 16;
@@ -143,11 +146,11 @@ impl FieldGeometry {
         }
     }
 
-    /// Normalised row `Y = (y - c_y) / f` at the centre of row band `row`, in Q16 (positive;
-    /// the half above the principal point uses its negative).
-    pub fn row_centre_abs_q16(&self, row: usize) -> i128 {
-        let dy = (2 * row as i128 + 1) * i128::from(self.row_h_q16) / 2; // Q16 px
-        (dy << 16) / i128::from(self.focal_q16.max(1))
+    /// Normalised row `|Y| = |y - c_y| / f` at the centre of row band `row`, in Q12 (the half
+    /// above the principal point uses its negative), at most 2.
+    pub fn row_centre_abs_q12(&self, row: usize) -> i64 {
+        let dy = (2 * row as i64 + 1) * self.row_h_q16 / 2; // Q16 px
+        ((dy << 12) / self.focal_q16.max(1 << 16)).clamp(0, 2 << 12)
     }
 
     /// Region of pixel `(x, y)`: index `((side · COL_BANDS + band) · 2 + vside) · ROW_BANDS + row`.
@@ -214,6 +217,9 @@ pub struct Field {
     tau_us: [u32; 2],
     /// Decodes per population since the last output.
     recent: [u32; 2],
+    /// Sum of each population's bins per region (kept with the bins, so that no output has to
+    /// add them all up).
+    mass: [[u64; REGIONS]; 2],
     /// Decodes per population, leaky over [`SHORT_TAU_US`] (Q16 samples).
     short: [u32; 2],
     /// Per-period decay of `short` (Q1.31).
@@ -246,6 +252,7 @@ impl Field {
             grow_half_q31: [grow(fast), grow(slow)],
             tau_us,
             recent: [0; 2],
+            mass: [[0; REGIONS]; 2],
             short: [0; 2],
             short_keep_q31: keep(SHORT_TAU_US),
             paired_bands,
@@ -275,7 +282,15 @@ impl Field {
             .and_then(|h| h.get_mut(usize::from(positive)))
             .and_then(|h| h.get_mut(bin))
         {
+            let before = *b;
             *b = b.saturating_add(w);
+            if let Some(m) = self
+                .mass
+                .get_mut(pop as usize)
+                .and_then(|m| m.get_mut(region))
+            {
+                *m += u64::from(*b - before);
+            }
         }
         if let Some(c) = self.recent.get_mut(pop as usize) {
             *c = c.saturating_add(1);
@@ -290,11 +305,12 @@ impl Field {
                 .min(u64::from(u32::MAX)) as u32;
             *recent = 0;
         }
-        for ((weight, grow), hist) in self
+        for (((weight, grow), hist), mass) in self
             .weight
             .iter_mut()
             .zip(self.grow_half_q31.iter())
             .zip(self.hist.iter_mut())
+            .zip(self.mass.iter_mut())
         {
             let mut w = (u64::from(*weight) * u64::from(*grow)) >> 30;
             // Halve as often as needed (more than once when the period exceeds tau ln 2).
@@ -304,8 +320,13 @@ impl Field {
                 shift += 1;
             }
             if shift > 0 {
-                for b in hist.iter_mut().flatten().flatten() {
-                    *b = b.checked_shr(shift).unwrap_or(0);
+                for (region, m) in hist.iter_mut().zip(mass.iter_mut()) {
+                    let mut sum = 0u64;
+                    for b in region.iter_mut().flatten() {
+                        *b = b.checked_shr(shift).unwrap_or(0);
+                        sum += u64::from(*b);
+                    }
+                    *m = sum;
                 }
             }
             *weight = w.clamp(1, u64::from(2 * UNIT_WEIGHT)) as u32;
@@ -315,7 +336,7 @@ impl Field {
     /// One population's statistics in a region, or `None` with fewer than `min_samples`.
     fn population_value(&self, pop: Population, region: usize) -> Option<RegionStats> {
         let [neg, pos] = self.hist.get(pop as usize)?.get(region)?;
-        let total: u64 = neg.iter().chain(pos.iter()).map(|&b| u64::from(b)).sum();
+        let total = self.mass.get(pop as usize)?.get(region).copied()?;
         let weight = u64::from(
             self.weight
                 .get(pop as usize)
@@ -396,9 +417,7 @@ impl Field {
     /// (Q16): the slow units may answer only where edges are mostly slow.
     fn rate(&self, pop: Population) -> u64 {
         let i = pop as usize;
-        let mass: u64 = self.hist.get(i).map_or(0, |h| {
-            h.iter().flatten().flatten().map(|&b| u64::from(b)).sum()
-        });
+        let mass: u64 = self.mass.get(i).map_or(0, |m| m.iter().sum());
         let w = u64::from(self.weight.get(i).copied().unwrap_or(UNIT_WEIGHT).max(1));
         let tau = u64::from(self.tau_us.get(i).copied().unwrap_or(1).max(1));
         ((mass << 16) / w) / tau
@@ -425,11 +444,7 @@ impl Field {
                 }
             };
             if let (Some((v, var)), Some(slot)) = (est, values.get_mut(n)) {
-                let w = (WEIGHT_SCALE / var.max(1)).min(u128::from(u64::MAX)) as u64;
-                *slot = (
-                    v.clamp(i128::from(i32::MIN), i128::from(i32::MAX)) as i64,
-                    w,
-                );
+                *slot = (v, (WEIGHT_SCALE / var.max(1)).max(1));
                 n += 1;
             }
         }
@@ -470,62 +485,55 @@ impl Field {
     /// column band, so the intercept is the yaw rate plus what stays odd in `X` (which the
     /// mirrored side cancels). The slopes have a prior ([`SLOPE_PRIOR`]) so that one row band
     /// per half still counts.
-    fn column_intercept(&self, pop: Population, side: usize, band: usize) -> Option<(i128, u128)> {
-        // Sums in i128: weights are WEIGHT_SCALE / variance, Y in Q16, r in Q16.
-        let (mut s, mut r_sum) = (0i128, 0i128);
-        let mut half = [(0i128, 0i128, 0i128); 2]; // (Σ w Y, Σ w Y², Σ w r Y) above, below
-        let mut points = 0u32;
+    fn column_intercept(&self, pop: Population, side: usize, band: usize) -> Option<(i64, u64)> {
+        // Fixed point without 128-bit division (costly on a Cortex-M): weights in
+        // [0, MAX_WEIGHT], Y and r in Q12. The bounds in the comments keep every i64 in range.
+        let (mut s, mut r_sum) = (0i64, 0i64); // < 2^23, < 2^45
+        let mut half = [(0i64, 0i64, 0i64); 2]; // (Σ w Y < 2^36, Σ w Y² < 2^37, Σ w r Y < 2^46)
         for vside in 0..2 {
             for row in 0..ROW_BANDS {
                 let Some(st) = self.population_value(pop, region_index(side, band, vside, row))
                 else {
                     continue;
                 };
-                let w = (WEIGHT_SCALE / u128::from(st.variance.max(1))) as i128;
+                let w = (WEIGHT_SCALE / st.variance.max(1)).min(MAX_WEIGHT) as i64;
                 if w == 0 {
                     continue;
                 }
-                let y = if vside == 0 {
-                    -self.geometry.row_centre_abs_q16(row)
-                } else {
-                    self.geometry.row_centre_abs_q16(row)
-                };
-                let r = i128::from(st.median);
+                let y_abs = self.geometry.row_centre_abs_q12(row);
+                let y = if vside == 0 { -y_abs } else { y_abs };
+                let r = (st.median >> 4).clamp(-(1 << 21), 1 << 21);
                 s += w;
                 r_sum += w * r;
                 if let Some((sy, syy, sry)) = half.get_mut(vside) {
                     *sy += w * y;
-                    *syy += (w * y * y) >> 16;
-                    *sry += (w * r * y) >> 16;
+                    *syy += (w * y * y) >> 12;
+                    *sry += (w * r * y) >> 12;
                 }
-                points += 1;
             }
         }
-        if points == 0 {
+        if s == 0 {
             return None;
         }
-        // Eliminate the slopes (Schur complement): each half contributes
-        // -Σ(wY)²/(Σ wY² + prior) to the intercept's information and the matching term to
-        // its right-hand side.
-        let (mut info, mut rhs) = (s << 16, r_sum << 16);
-        // (rhs is in Q32 x weight, info in Q16 x weight: their ratio is the rate in Q16.)
+        // Eliminate the slopes (Schur complement): each half takes k = Σ wY / (Σ wY² + prior)
+        // and removes k Σ wY from the intercept's information (at most all of it, by
+        // Cauchy-Schwarz) and k Σ wrY from its right-hand side.
+        let (mut info, mut rhs) = (s << 12, r_sum); // weight x Q12, weight x r in Q12
         for &(sy, syy, sry) in &half {
-            let denom = syy + (SLOPE_PRIOR as i128);
+            let denom = syy.saturating_add(SLOPE_PRIOR);
             if sy == 0 || denom <= 0 {
                 continue;
             }
-            let (Some(yy), Some(ry)) = (sy.checked_mul(sy), sy.checked_mul(sry)) else {
-                return None;
-            };
-            info -= yy / denom;
-            rhs -= (ry / denom) << 16;
+            let k = (sy << 12) / denom; // Q12
+            info -= ((i128::from(k) * i128::from(sy)) >> 12) as i64;
+            rhs -= ((i128::from(k) * i128::from(sry)) >> 12).clamp(-(1 << 62), 1 << 62) as i64;
         }
         if info <= 0 {
             return None;
         }
-        // info is in weight x Q16; omega = rhs / info in Q16; variance = SCALE / info (Q32).
-        let omega = rhs / info;
-        let variance = ((WEIGHT_SCALE << 16) / info as u128).max(1);
-        Some((omega, variance))
+        // omega = rhs / info (rhs in weight x Q12, info in weight x Q12), in Q12 then Q16.
+        let omega_q12 = rhs.saturating_mul(1 << 12) / info;
+        let variance = ((WEIGHT_SCALE << 12) / info.unsigned_abs()).max(1);
+        Some((omega_q12.saturating_mul(16), variance))
     }
 }

@@ -54,20 +54,20 @@ const SENSOR: (u16, u16) = (346, 260);
 const FOCAL_PX: U16F16 = U16F16::const_from_int(226);
 /// Principal point column (px): the sensor's centre, (width - 1) / 2.
 const CX: U16F16 = U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2);
-/// Which network runs: the paper's boxes (800 cells), or [`DENSE_WINDOW`].
-const LAYOUT: LayoutChoice = LayoutChoice::PaperBoxes;
-/// Columns of the dense window.
-const WINDOW_COLS: u16 = 192;
-/// Rows of the dense window: as many as the CCM holds (28 rows of 12-byte cells).
-const WINDOW_ROWS: u16 = (MAX_CELLS / WINDOW_COLS as usize) as u16;
-/// The largest dense window that fits the CCM: 192 x 28 pixels (5376 cells of 12 bytes,
-/// 64 512 B, 10 640 units), centred.
-#[allow(dead_code)]
-const DENSE_WINDOW: LayoutChoice = LayoutChoice::Window {
-    x0: (SENSOR.0 - WINDOW_COLS) / 2,
-    y0: (SENSOR.1 - WINDOW_ROWS) / 2,
-    w: WINDOW_COLS,
-    h: WINDOW_ROWS,
+/// Which network runs until a configuration frame says otherwise: [`DENSE_STRIP`], chosen by
+/// measurement over the paper's boxes and a 192 x 28 window (`firmware/README.md`).
+const LAYOUT: LayoutChoice = DENSE_STRIP;
+/// Rows of the dense strip: as many whole sensor rows as the CCM holds (15 rows of 12-byte
+/// cells).
+const STRIP_ROWS: u16 = (MAX_CELLS / SENSOR.0 as usize) as u16;
+/// The largest full-width dense window that fits the CCM: 346 x 15 pixels (5190 cells of 12
+/// bytes, 62 280 B, 10 020 units), centred on the principal row. Full width gives the readout
+/// every column band.
+const DENSE_STRIP: LayoutChoice = LayoutChoice::Window {
+    x0: 0,
+    y0: (SENSOR.1 - STRIP_ROWS) / 2,
+    w: SENSOR.0,
+    h: STRIP_ROWS,
 };
 /// What runs until the AER stream sends a configuration frame (`docs/wire-formats.md`).
 const DEFAULTS: StreamConfig = StreamConfig {

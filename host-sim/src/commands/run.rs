@@ -66,6 +66,10 @@ pub struct Args {
     /// FAC-to-TRG distance in pixels.
     #[arg(long, default_value_t = 2)]
     pub stride: u16,
+    /// With `--layout dense`: only a `W x H` window at `(X0, Y0)` of the sensor, as a board with
+    /// little RAM runs it (`X0:Y0:W:H`, e.g. the STM32F405's `77:116:192:28`).
+    #[arg(long, value_parser = parse_window)]
+    pub window: Option<(u16, u16, u16, u16)>,
     /// Readout.
     #[arg(long, value_enum, default_value_t = ReadoutKind::Calibrated)]
     pub readout: ReadoutKind,
@@ -244,6 +248,7 @@ impl Args {
             format: None,
             layout: LayoutKind::Dense,
             stride: 2,
+            window: None,
             readout: ReadoutKind::Calibrated,
             model: Model::Fixed,
             focal_px: None,
@@ -346,8 +351,18 @@ pub fn run_stream(
     let start = Instant::now();
     let mut out = match args.layout {
         LayoutKind::Dense => {
-            let layout = Dense::new(w, h, args.stride)
-                .with_context(|| format!("stride {} does not fit a {w}x{h} sensor", args.stride))?;
+            let layout = match args.window {
+                None => Dense::new(w, h, args.stride).with_context(|| {
+                    format!("stride {} does not fit a {w}x{h} sensor", args.stride)
+                })?,
+                Some((x0, y0, ww, wh)) => Dense::window(w, h, x0, y0, ww, wh, args.stride)
+                    .with_context(|| {
+                        format!(
+                            "window {x0}:{y0}:{ww}:{wh} (stride {}) does not fit a {w}x{h} sensor",
+                            args.stride
+                        )
+                    })?,
+            };
             run.on_layout(layout, &mut pieces, samples)?
         }
         LayoutKind::PaperBoxes => {
@@ -841,4 +856,19 @@ pub fn run(args: Args) -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// Parses `X0:Y0:W:H` (pixels).
+fn parse_window(s: &str) -> Result<(u16, u16, u16, u16), String> {
+    let v: Vec<u16> = s
+        .split(':')
+        .map(|p| p.parse::<u16>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("`{s}`: expected X0:Y0:W:H in pixels"))?;
+    match v[..] {
+        [x0, y0, w, h] if w > 0 && h > 0 => Ok((x0, y0, w, h)),
+        _ => Err(format!(
+            "`{s}`: expected X0:Y0:W:H in pixels, W and H at least 1"
+        )),
+    }
 }
