@@ -72,15 +72,17 @@ pub const REFRESH_US: u32 = 4_000;
 /// Smallest histogram time constant of the slow units (µs): they see few edges per period.
 pub const SLOW_TAU_A_US: u32 = 100_000;
 
-/// Units of the full DAVIS346 dense layout (346 x 260, stride 2), for which `tau_A` = 10 ms.
-pub const FULL_DENSE_UNITS: usize = 178_880;
+/// Layouts with at least this many units (a whole DAVIS240 or DAVIS346 at stride 2) read the
+/// field over `tau_A` = 10 ms.
+pub const REFERENCE_UNITS: usize = 60_000;
 
-/// Default readout time constant (µs) for a layout of `units` units: 10 ms for the full dense
-/// DAVIS346 layout, longer in proportion for layouts with fewer units (their regions see fewer
-/// edges per millisecond), at most 100 ms (a window of a few rows, the paper's 200-unit boxes).
+/// Default readout time constant (µs) for a layout of `units` units: 10 ms from
+/// [`REFERENCE_UNITS`] up, longer in proportion below (the field's regions see fewer edges per
+/// millisecond), at most 100 ms: 60 ms for the STM32F405's 346 x 15 strip, 100 ms for the
+/// paper's 200-unit boxes.
 pub const fn default_tau_a_us(units: usize) -> u32 {
     let units = if units == 0 { 1 } else { units };
-    let tau = 10_000u64 * FULL_DENSE_UNITS as u64 / units as u64;
+    let tau = 10_000u64 * REFERENCE_UNITS as u64 / units as u64;
     if tau < 10_000 {
         10_000
     } else if tau > 100_000 {
