@@ -76,6 +76,9 @@ fn compare(
             ill = false;
             burst_start = t;
         }
+        // A graze shortly before a spike may have left the membrane reset in one model and not
+        // in the other: the rest of that burst runs from different states.
+        ill = ill || grazes.iter().any(|&g| g <= t && t - g <= BURST_GAP_US);
         prev = Some(t);
         // Within a long burst each spike restarts from the previous one, so offsets add up and
         // grow as the crossings flatten: allow 1 % of the time since the burst's first spike.
@@ -313,4 +316,57 @@ fn ill_conditioned_bursts() {
             .collect();
         compare(&fixed, &oracle, &grazes, &inputs, "unit").unwrap();
     }
+}
+
+/// A train a CI run found: a graze at 367.2 ms, 1.8 ms before the TRG event that starts the next
+/// burst. The burst then starts from a reset membrane in one model and not in the other, and its
+/// spikes drift apart (243 µs at the first, 3.9 ms at the last): exempt as a burst after a graze.
+#[test]
+fn burst_after_a_graze() {
+    let train: Vec<(u32, bool)> = [
+        (0, false),
+        (14125, false),
+        (23663, true),
+        (4239, false),
+        (4181, true),
+        (24601, false),
+        (10083, true),
+        (17257, false),
+        (3386, false),
+        (11122, true),
+        (15802, false),
+        (20688, false),
+        (15915, false),
+        (12086, true),
+        (9236, false),
+        (4855, true),
+        (19687, false),
+        (17498, false),
+        (19921, true),
+        (9556, false),
+        (19267, true),
+        (21544, true),
+        (6115, true),
+        (4370, true),
+        (0, false),
+        (15249, false),
+        (21391, false),
+        (6349, false),
+        (16764, true),
+    ]
+    .to_vec();
+    let (oracle, grazes, _) = run_unit_oracle(&train);
+    assert!(!grazes.is_empty(), "the train must graze");
+    let fixed: Vec<f64> = run_unit_fixed(&train, 0)
+        .into_iter()
+        .map(f64::from)
+        .collect();
+    let inputs: Vec<f64> = train
+        .iter()
+        .scan(0.0, |t, &(gap, _)| {
+            *t += f64::from(gap);
+            Some(*t)
+        })
+        .collect();
+    compare(&fixed, &oracle, &grazes, &inputs, "unit").unwrap();
 }
