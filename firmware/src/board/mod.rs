@@ -25,6 +25,12 @@ mod stm32h743;
 #[cfg(all(feature = "board-stm32h743", not(feature = "board-qemu")))]
 pub use stm32h743::main;
 
+/// Executors, yaw queue, cycle meter and tasks shared by the STM32 boards.
+#[cfg(all(
+    any(feature = "board-stm32f405", feature = "board-stm32h743"),
+    not(feature = "board-qemu")
+))]
+mod stm32_common;
 /// The SPI link (NSS edges, OVR, MODF) shared by the STM32 boards.
 #[cfg(all(
     any(feature = "board-stm32f405", feature = "board-stm32h743"),

@@ -27,25 +27,20 @@ use core_nostd::aer::config::{LayoutChoice, StreamConfig};
 use core_nostd::aer::yaw::FRAME_BYTES;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::unit::Kernel;
-use cortex_m::peripheral::DWT;
 use defmt_rtt as _;
-use embassy_executor::{Executor, InterruptExecutor};
 use embassy_stm32::dma::{self, ReadableRingBuffer, TransferOptions};
-use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::interrupt::Priority;
 use embassy_stm32::spi::{BitOrder, RxDma};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::usart::{self, UartTx};
 use embassy_stm32::{bind_interrupts, pac, peripherals, spi};
-use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::channel::Channel;
-use embassy_time::Timer;
 use panic_probe as _;
 use static_cell::StaticCell;
 
+use super::stm32_common::{self, CycleMeter, UartSink};
 use super::stm32_link::{self, SpiLink};
 use crate::app::configured::{self, CellStore};
 use crate::app::process::Cell;
-use crate::app::{self, CostMeter, Overload, YawSink};
 
 bind_interrupts!(struct Irqs {
     DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
@@ -98,81 +93,12 @@ static mut TX_BUF: [u8; FRAME_BYTES * TX_FRAMES] = [0; FRAME_BYTES * TX_FRAMES];
 
 static KERNEL: Kernel = Kernel::DEFAULT;
 
-/// Yaw frames waiting for the USART.
-static YAW_OUT: Channel<CriticalSectionRawMutex, [u8; FRAME_BYTES], 64> = Channel::new();
-
-static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
-static EXECUTOR_LOW: StaticCell<Executor> = StaticCell::new();
-
-#[embassy_stm32::interrupt]
-unsafe fn UART4() {
-    // SAFETY: UART4 is unused as a peripheral; its interrupt only runs this executor.
-    unsafe { EXECUTOR_HIGH.on_interrupt() }
-}
-
-/// Yaw frames into [`YAW_OUT`] (dropped and counted when full).
-struct UartSink;
-
-impl YawSink for UartSink {
-    fn write(&mut self, frame: &[u8; FRAME_BYTES]) -> bool {
-        YAW_OUT.try_send(*frame).is_ok()
-    }
-}
-
-/// Cycles of the DWT cycle counter.
-struct CycleMeter;
-
-impl CostMeter for CycleMeter {
-    const UNIT: &'static str = "cycles";
-
-    fn units_per_tick() -> u32 {
-        1
-    }
-
-    fn now() -> u32 {
-        DWT::cycle_count()
-    }
-
-    fn ticks(earlier: u32, later: u32) -> u32 {
-        later.wrapping_sub(earlier)
-    }
-}
-
-#[embassy_executor::task]
-async fn input_task(mut source: SpiLink) {
-    app::input::run::<_, CycleMeter>(&mut source, Overload::DropFrames).await;
-}
-
 #[embassy_executor::task]
 async fn output_task(mut tx: UartTx<'static, embassy_stm32::mode::Async>) {
     // SAFETY: TX_BUF is used by this task only, for the rest of the program.
     let buf: &'static mut [u8; FRAME_BYTES * TX_FRAMES] =
         unsafe { &mut *core::ptr::addr_of_mut!(TX_BUF) };
-    loop {
-        let first = YAW_OUT.receive().await;
-        let mut n = 0;
-        for (dst, src) in buf
-            .chunks_exact_mut(FRAME_BYTES)
-            .zip(core::iter::once(first).chain(core::iter::from_fn(|| YAW_OUT.try_receive().ok())))
-        {
-            dst.copy_from_slice(&src);
-            n += FRAME_BYTES;
-        }
-        if tx.write(buf.get(..n).unwrap_or_default()).await.is_err() {
-            defmt::warn!("usart write failed");
-        }
-    }
-}
-
-/// Logs the counters once a second.
-#[embassy_executor::task]
-async fn status_task() {
-    loop {
-        Timer::after_secs(1).await;
-        let s = app::stats();
-        let per_event = s.cost_units / u64::from(s.events.max(1));
-        defmt::info!("{} ({}/event: {})", s, CycleMeter::UNIT, per_event);
-    }
+    stm32_common::send_yaw_frames(&mut tx, buf).await
 }
 
 #[embassy_executor::task]
@@ -255,26 +181,5 @@ pub fn main() -> ! {
         Err(_) => defmt::panic!("usart config"),
     };
 
-    // Input on a higher-priority executor: it preempts processing.
-    interrupt::UART4.set_priority(Priority::P6);
-    let high = EXECUTOR_HIGH.start(interrupt::UART4);
-    match input_task(SpiLink::new(ring)) {
-        Ok(t) => high.spawn(t),
-        Err(_) => defmt::panic!("spawn input"),
-    }
-    let executor = EXECUTOR_LOW.init(Executor::new());
-    executor.run(|spawner| {
-        match process_task() {
-            Ok(t) => spawner.spawn(t),
-            Err(_) => defmt::panic!("spawn process"),
-        }
-        match output_task(tx) {
-            Ok(t) => spawner.spawn(t),
-            Err(_) => defmt::panic!("spawn output"),
-        }
-        match status_task() {
-            Ok(t) => spawner.spawn(t),
-            Err(_) => defmt::panic!("spawn status"),
-        }
-    })
+    stm32_common::run(SpiLink::new(ring), process_task, move || output_task(tx))
 }
