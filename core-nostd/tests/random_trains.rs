@@ -216,9 +216,18 @@ proptest! {
         }
         net.flush(t + 1_000_000.0, &mut oracle);
         let of = |set: &[(f64, u32)], unit: u32| -> Vec<f64> { set.iter().filter(|s| s.1 == unit).map(|s| s.0).collect() };
+        // Every event's time: one landing between the two models' spikes of a unit may reach it
+        // in a different order (an order flip, exempt as in the one-unit test).
+        let inputs: Vec<f64> = train
+            .iter()
+            .scan(0.0, |t, &(gap, _, _)| {
+                *t += f64::from(gap);
+                Some(*t)
+            })
+            .collect();
         for unit in 0..(2 * layout.cell_count()) as u32 {
             let f: Vec<f64> = fixed.iter().filter(|s| s.1 == unit).map(|s| f64::from(s.0)).collect();
-            compare(&f, &of(&oracle, unit), &of(&net.grazes, unit), &[], &format!("unit {unit}"))?;
+            compare(&f, &of(&oracle, unit), &of(&net.grazes, unit), &inputs, &format!("unit {unit}"))?;
         }
     }
 
@@ -369,4 +378,203 @@ fn burst_after_a_graze() {
         })
         .collect();
     compare(&fixed, &oracle, &grazes, &inputs, "unit").unwrap();
+}
+
+/// OPEN: a grid train (8 x 3, stride 2) a CI run drew where a spike of unit 21 near 323 ms lies
+/// about 180 µs from any oracle spike, with no graze or order flip to explain it (the code before the
+/// field readout was 4.5 ms off on it). Kept to reproduce: `cargo test --release -p core-nostd
+/// --test random_trains -- --ignored`. `cargo xtask test` fixes proptest's seed, so CI does not
+/// draw such trains at random.
+#[test]
+#[ignore = "open discrepancy between the fixed core and the oracle, under investigation"]
+fn grid_train_180_us_off() {
+    let train: Vec<(u32, u16, u16)> = vec![
+        (0, 4, 1),
+        (2993, 0, 0),
+        (1949, 0, 0),
+        (1713, 0, 0),
+        (329, 0, 0),
+        (910, 0, 0),
+        (3518, 0, 0),
+        (1782, 0, 0),
+        (3953, 0, 0),
+        (3093, 2, 1),
+        (2381, 5, 0),
+        (3497, 0, 0),
+        (2897, 0, 0),
+        (3048, 0, 0),
+        (1295, 0, 0),
+        (518, 0, 0),
+        (3723, 0, 0),
+        (840, 0, 0),
+        (788, 0, 0),
+        (73, 0, 0),
+        (2392, 0, 0),
+        (2987, 4, 1),
+        (2181, 2, 1),
+        (2186, 0, 0),
+        (800, 0, 0),
+        (1825, 0, 0),
+        (1955, 4, 1),
+        (916, 0, 0),
+        (130, 0, 0),
+        (3075, 0, 0),
+        (984, 0, 0),
+        (1057, 0, 0),
+        (363, 0, 0),
+        (1329, 0, 0),
+        (274, 0, 0),
+        (3416, 0, 0),
+        (2984, 0, 0),
+        (288, 4, 1),
+        (3710, 0, 0),
+        (1853, 0, 0),
+        (362, 0, 0),
+        (1113, 5, 0),
+        (3555, 0, 0),
+        (1539, 0, 0),
+        (1129, 0, 0),
+        (2891, 0, 0),
+        (1570, 0, 0),
+        (3312, 2, 1),
+        (2087, 0, 0),
+        (3457, 0, 0),
+        (1002, 0, 0),
+        (1318, 4, 1),
+        (2881, 0, 0),
+        (2320, 0, 0),
+        (2219, 0, 0),
+        (542, 0, 0),
+        (3394, 0, 0),
+        (3176, 0, 0),
+        (1355, 0, 0),
+        (2890, 0, 0),
+        (170, 0, 0),
+        (1548, 0, 0),
+        (1775, 0, 0),
+        (1410, 0, 0),
+        (866, 0, 0),
+        (94, 0, 0),
+        (3941, 0, 0),
+        (1674, 0, 0),
+        (3184, 0, 0),
+        (442, 0, 0),
+        (1654, 0, 0),
+        (3927, 0, 0),
+        (861, 0, 0),
+        (1798, 4, 1),
+        (1914, 0, 0),
+        (3583, 0, 0),
+        (3753, 0, 0),
+        (323, 0, 0),
+        (3612, 0, 0),
+        (333, 0, 0),
+        (1011, 0, 0),
+        (1727, 0, 0),
+        (3028, 0, 0),
+        (202, 2, 1),
+        (1365, 0, 0),
+        (3949, 0, 0),
+        (3830, 2, 1),
+        (1120, 2, 1),
+        (79, 0, 0),
+        (2888, 5, 0),
+        (767, 0, 0),
+        (2326, 0, 0),
+        (1184, 0, 0),
+        (2294, 0, 0),
+        (3204, 0, 0),
+        (3967, 2, 1),
+        (2314, 0, 0),
+        (675, 5, 0),
+        (3456, 0, 0),
+        (3102, 0, 0),
+        (1811, 0, 0),
+        (17, 0, 0),
+        (3108, 0, 0),
+        (1993, 4, 1),
+        (1519, 0, 0),
+        (1182, 0, 0),
+        (953, 0, 0),
+        (3620, 0, 0),
+        (2929, 0, 0),
+        (289, 0, 0),
+        (465, 0, 0),
+        (74, 0, 0),
+        (1223, 0, 0),
+        (1223, 0, 0),
+        (2054, 0, 0),
+        (1991, 0, 0),
+        (250, 0, 0),
+        (957, 0, 0),
+        (3888, 0, 0),
+        (2030, 0, 0),
+        (3000, 2, 1),
+        (303, 0, 0),
+        (2530, 0, 0),
+        (1882, 2, 1),
+        (2192, 0, 0),
+        (907, 0, 0),
+        (3247, 0, 0),
+        (1213, 0, 0),
+        (3634, 0, 0),
+        (1233, 5, 0),
+        (1668, 5, 0),
+        (2574, 5, 0),
+        (2701, 0, 0),
+        (3689, 0, 0),
+        (1671, 0, 0),
+        (1772, 0, 0),
+        (1900, 0, 0),
+        (3853, 0, 0),
+        (2238, 0, 0),
+        (1361, 0, 0),
+        (1163, 0, 0),
+        (1466, 0, 0),
+        (784, 0, 0),
+        (2244, 0, 0),
+        (1243, 0, 0),
+        (3990, 0, 0),
+        (996, 0, 0),
+        (3618, 0, 0),
+        (2412, 0, 0),
+        (1209, 0, 0),
+        (3500, 0, 0),
+        (1515, 0, 0),
+        (2288, 0, 0),
+        (2186, 0, 0),
+        (1272, 0, 0),
+        (1286, 0, 0),
+        (2237, 0, 0),
+        (699, 0, 0),
+        (873, 0, 0),
+        (1851, 0, 0),
+        (1887, 0, 0),
+        (2415, 0, 0),
+        (289, 0, 0),
+        (1769, 4, 1),
+        (3951, 0, 0),
+        (719, 0, 0),
+        (812, 0, 0),
+        (3248, 2, 1),
+    ];
+    let layout = Dense::new(8, 3, 2).unwrap();
+    let fixed = run_grid_fixed(layout, &train, 0);
+    let mut net = OracleNetwork::new(OracleParams::default(), layout);
+    let mut oracle = Vec::new();
+    let mut t = 0.0;
+    for &(gap, x, y) in &train {
+        t += f64::from(gap);
+        net.event(t, x, y, &mut oracle);
+    }
+    net.flush(t + 1_000_000.0, &mut oracle);
+    let of = |set: &[(f64, u32)], unit: u32| -> Vec<f64> {
+        set.iter().filter(|s| s.1 == unit).map(|s| s.0).collect()
+    };
+    let f: Vec<f64> = fixed
+        .iter()
+        .filter(|s| s.1 == 21)
+        .map(|s| f64::from(s.0))
+        .collect();
+    compare(&f, &of(&oracle, 21), &of(&net.grazes, 21), &[], "unit 21").unwrap();
 }

@@ -21,6 +21,9 @@ const APT_PACKAGES: &[&str] = &[
     "binutils-arm-none-eabi",
 ];
 
+/// Seed of the property tests under `cargo xtask test` (see `test`).
+const PROPTEST_SEED: &str = "20261201";
+
 /// The Cortex-M target of the firmware and of the no_std core.
 pub const TARGET: &str = "thumbv7em-none-eabihf";
 
@@ -155,6 +158,10 @@ fn test() -> Result<()> {
     let mut c = cargo();
     c.args(["test", "--workspace", "--release"]);
     c.env("CARGO_PROFILE_RELEASE_OVERFLOW_CHECKS", "true");
+    // The property tests draw the same cases on every run of this command, so that a red run
+    // is reproducible and a green one means the same thing every time. `cargo test` on its
+    // own draws new cases each run (that is how the oracle's ill-conditioned trains were found).
+    c.env("PROPTEST_RNG_SEED", PROPTEST_SEED);
     run("cargo test --workspace --release", c)?;
     firmware::ensure_target()?;
     let mut c = cargo();
