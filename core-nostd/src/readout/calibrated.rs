@@ -33,9 +33,7 @@
 
 use fixed::types::{I16F16, U16F16};
 
-use super::field::{
-    Field, FieldEstimate, FieldGeometry, FieldSettings, Population, COL_BANDS, ROW_BANDS,
-};
+use super::field::{Field, FieldEstimate, FieldGeometry, FieldSettings, Population, COL_BANDS};
 use super::{flags, Readout};
 use crate::layout::Layout;
 use crate::log2::log2_q16;
@@ -268,10 +266,7 @@ fn paired_bands<L: Layout>(layout: &L, g: &FieldGeometry) -> u8 {
         if layout.units(c) == 0 {
             continue;
         }
-        let (x, y) = layout.pixel(c);
-        let r = g.region(x, y);
-        let side = r / (COL_BANDS * 2 * ROW_BANDS);
-        let band = (r / (2 * ROW_BANDS)) % COL_BANDS;
+        let (side, band) = g.column(layout.pixel(c).0);
         if let Some(s) = seen.get_mut(side).and_then(|s| s.get_mut(band)) {
             *s = true;
         }

@@ -107,24 +107,26 @@ impl FieldSettings {
     };
 }
 
-/// Where the regions lie: the principal point and the band widths, in Q16 pixels.
+/// Where the regions lie: the principal point and the band edges, in Q16 pixels. Built once;
+/// placing a pixel takes comparisons only (no division on the per-event path).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FieldGeometry {
     /// Principal point (Q16 px).
-    pub cx_q16: i64,
+    cx_q16: i64,
     /// Principal point row (Q16 px).
-    pub cy_q16: i64,
-    /// Width of a column band (Q16 px, at least 1 px).
-    pub col_w_q16: i64,
-    /// Height of a row band (Q16 px, at least 1 px).
-    pub row_h_q16: i64,
-    /// Focal length (Q16 px, at least 1 px).
-    pub focal_q16: i64,
+    cy_q16: i64,
+    /// Inner edges of column bands 1.. (distance from `c_x`, Q16 px, increasing).
+    col_edges: [u64; COL_BANDS - 1],
+    /// Inner edges of row bands 1.. (distance from `c_y`, Q16 px, increasing).
+    row_edges: [u64; ROW_BANDS - 1],
+    /// `|Y|` at the centre of each row band, Q12 (at most 2).
+    row_centres_q12: [i64; ROW_BANDS],
 }
 
 impl FieldGeometry {
     /// Bands that split the span `[x_min, x_max] x [y_min, y_max]` (pixels with units) into
-    /// equal bands either side of the principal point `(cx, cy)` (Q16 px).
+    /// equal bands (each at least 1 px) either side of the principal point `(cx, cy)`, for a
+    /// focal length `focal_q16` (all Q16 px).
     pub fn spanning(
         cx_q16: i64,
         cy_q16: i64,
@@ -137,33 +139,60 @@ impl FieldGeometry {
             let hi = (i64::from(hi) + 1) << 16;
             (c - lo).max(hi - c).max(1 << 16)
         };
+        let col_w = (half(cx_q16, x) / COL_BANDS as i64).max(1 << 16);
+        let row_h = (half(cy_q16, y) / ROW_BANDS as i64).max(1 << 16);
+        let focal = focal_q16.max(1 << 16);
+        let mut col_edges = [0u64; COL_BANDS - 1];
+        for (k, e) in col_edges.iter_mut().enumerate() {
+            *e = (k as u64 + 1) * col_w.unsigned_abs();
+        }
+        let mut row_edges = [0u64; ROW_BANDS - 1];
+        for (k, e) in row_edges.iter_mut().enumerate() {
+            *e = (k as u64 + 1) * row_h.unsigned_abs();
+        }
+        let mut row_centres_q12 = [0i64; ROW_BANDS];
+        for (k, c) in row_centres_q12.iter_mut().enumerate() {
+            let dy = (2 * k as i64 + 1) * row_h / 2; // Q16 px
+            *c = ((dy << 12) / focal).clamp(0, 2 << 12);
+        }
         Self {
             cx_q16,
             cy_q16,
-            col_w_q16: (half(cx_q16, x) / COL_BANDS as i64).max(1 << 16),
-            row_h_q16: (half(cy_q16, y) / ROW_BANDS as i64).max(1 << 16),
-            focal_q16: focal_q16.max(1 << 16),
+            col_edges,
+            row_edges,
+            row_centres_q12,
         }
     }
 
     /// Normalised row `|Y| = |y - c_y| / f` at the centre of row band `row`, in Q12 (the half
     /// above the principal point uses its negative), at most 2.
     pub fn row_centre_abs_q12(&self, row: usize) -> i64 {
-        let dy = (2 * row as i64 + 1) * self.row_h_q16 / 2; // Q16 px
-        ((dy << 12) / self.focal_q16.max(1 << 16)).clamp(0, 2 << 12)
+        self.row_centres_q12.get(row).copied().unwrap_or(0)
+    }
+
+    /// `(side, band)` of column `x`: side 1 at or right of the principal point.
+    #[inline]
+    pub fn column(&self, x: u16) -> (usize, usize) {
+        let dx = (i64::from(x) << 16) + (1 << 15) - self.cx_q16;
+        let band = self
+            .col_edges
+            .iter()
+            .filter(|&&e| dx.unsigned_abs() >= e)
+            .count();
+        (usize::from(dx >= 0), band)
     }
 
     /// Region of pixel `(x, y)`: index `((side · COL_BANDS + band) · 2 + vside) · ROW_BANDS + row`.
     #[inline]
     pub fn region(&self, x: u16, y: u16) -> usize {
-        let dx = (i64::from(x) << 16) + (1 << 15) - self.cx_q16;
+        let (side, band) = self.column(x);
         let dy = (i64::from(y) << 16) + (1 << 15) - self.cy_q16;
-        // Widths are at least 1 px by construction; a hand-made zero puts all in the last band.
-        let band = (dx.unsigned_abs().checked_div(self.col_w_q16.unsigned_abs()))
-            .map_or(COL_BANDS - 1, |b| (b as usize).min(COL_BANDS - 1));
-        let row = (dy.unsigned_abs().checked_div(self.row_h_q16.unsigned_abs()))
-            .map_or(ROW_BANDS - 1, |r| (r as usize).min(ROW_BANDS - 1));
-        ((usize::from(dx >= 0) * COL_BANDS + band) * 2 + usize::from(dy >= 0)) * ROW_BANDS + row
+        let row = self
+            .row_edges
+            .iter()
+            .filter(|&&e| dy.unsigned_abs() >= e)
+            .count();
+        region_index(side, band, usize::from(dy >= 0), row)
     }
 }
 
