@@ -134,23 +134,72 @@ fn run_unit_oracle(train: &[(u32, bool)]) -> (Vec<f64>, Vec<f64>, f64) {
     (spikes, tde.grazes, max_trace)
 }
 
+/// Times (µs) of a train's events from its gaps.
+fn event_times(gaps: impl Iterator<Item = u32>) -> Vec<f64> {
+    gaps.scan(0.0, |t, gap| {
+        *t += f64::from(gap);
+        Some(*t)
+    })
+    .collect()
+}
+
+/// One unit on `train`, fixed core against the oracle ([`compare`]); also the largest trace the
+/// oracle reached and its grazes.
+fn unit_vs_oracle(train: &[(u32, bool)]) -> (Result<(), TestCaseError>, f64, usize) {
+    let (oracle, grazes, max_trace) = run_unit_oracle(train);
+    let fixed: Vec<f64> = run_unit_fixed(train, 0)
+        .into_iter()
+        .map(f64::from)
+        .collect();
+    let inputs = event_times(train.iter().map(|&(gap, _)| gap));
+    let result = compare(&fixed, &oracle, &grazes, &inputs, "unit");
+    (result, max_trace, grazes.len())
+}
+
+/// Every unit of an 8 x 3 grid (stride 2) on `train`, fixed core against the oracle. Every
+/// event's time counts as an input: one landing between the two models' spikes of a unit may
+/// reach it in a different order (an order flip, exempt as in the one-unit test).
+fn grid_vs_oracle(train: &[(u32, u16, u16)]) -> Result<(), TestCaseError> {
+    let layout = Dense::new(8, 3, 2).unwrap();
+    let fixed = run_grid_fixed(layout, train, 0);
+    let mut net = OracleNetwork::new(OracleParams::default(), layout);
+    let mut oracle = Vec::new();
+    let mut t = 0.0;
+    for &(gap, x, y) in train {
+        t += f64::from(gap);
+        net.event(t, x, y, &mut oracle);
+    }
+    net.flush(t + 1_000_000.0, &mut oracle);
+    let of = |set: &[(f64, u32)], unit: u32| -> Vec<f64> {
+        set.iter().filter(|s| s.1 == unit).map(|s| s.0).collect()
+    };
+    let inputs = event_times(train.iter().map(|&(gap, _, _)| gap));
+    for unit in 0..(2 * layout.cell_count()) as u32 {
+        let f: Vec<f64> = fixed
+            .iter()
+            .filter(|s| s.1 == unit)
+            .map(|s| f64::from(s.0))
+            .collect();
+        compare(
+            &f,
+            &of(&oracle, unit),
+            &of(&net.grazes, unit),
+            &inputs,
+            &format!("unit {unit}"),
+        )?;
+    }
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
 
     #[test]
     fn one_unit_matches_oracle(train in unit_train()) {
-        let (oracle, grazes, max_trace) = run_unit_oracle(&train);
+        let (result, max_trace, _) = unit_vs_oracle(&train);
         // The fixed core saturates its traces at 16 (documented); stay below that here.
         prop_assume!(max_trace < 15.0);
-        let fixed: Vec<f64> = run_unit_fixed(&train, 0).into_iter().map(f64::from).collect();
-        let inputs: Vec<f64> = train
-            .iter()
-            .scan(0.0, |t, &(gap, _)| {
-                *t += f64::from(gap);
-                Some(*t)
-            })
-            .collect();
-        compare(&fixed, &oracle, &grazes, &inputs, "unit")?;
+        result?;
     }
 
     #[test]
@@ -205,30 +254,7 @@ proptest! {
 
     #[test]
     fn grid_matches_oracle(train in grid_train(8, 3)) {
-        let layout = Dense::new(8, 3, 2).unwrap();
-        let fixed = run_grid_fixed(layout, &train, 0);
-        let mut net = OracleNetwork::new(OracleParams::default(), layout);
-        let mut oracle = Vec::new();
-        let mut t = 0.0;
-        for &(gap, x, y) in &train {
-            t += f64::from(gap);
-            net.event(t, x, y, &mut oracle);
-        }
-        net.flush(t + 1_000_000.0, &mut oracle);
-        let of = |set: &[(f64, u32)], unit: u32| -> Vec<f64> { set.iter().filter(|s| s.1 == unit).map(|s| s.0).collect() };
-        // Every event's time: one landing between the two models' spikes of a unit may reach it
-        // in a different order (an order flip, exempt as in the one-unit test).
-        let inputs: Vec<f64> = train
-            .iter()
-            .scan(0.0, |t, &(gap, _, _)| {
-                *t += f64::from(gap);
-                Some(*t)
-            })
-            .collect();
-        for unit in 0..(2 * layout.cell_count()) as u32 {
-            let f: Vec<f64> = fixed.iter().filter(|s| s.1 == unit).map(|s| f64::from(s.0)).collect();
-            compare(&f, &of(&oracle, unit), &of(&net.grazes, unit), &inputs, &format!("unit {unit}"))?;
-        }
+        grid_vs_oracle(&train)?;
     }
 
     #[test]
@@ -311,19 +337,7 @@ fn ill_conditioned_bursts() {
     for last in [false, true] {
         let mut train = base.to_vec();
         train.push((23599, last));
-        let (oracle, grazes, _) = run_unit_oracle(&train);
-        let fixed: Vec<f64> = run_unit_fixed(&train, 0)
-            .into_iter()
-            .map(f64::from)
-            .collect();
-        let inputs: Vec<f64> = train
-            .iter()
-            .scan(0.0, |t, &(gap, _)| {
-                *t += f64::from(gap);
-                Some(*t)
-            })
-            .collect();
-        compare(&fixed, &oracle, &grazes, &inputs, "unit").unwrap();
+        unit_vs_oracle(&train).0.unwrap();
     }
 }
 
@@ -364,20 +378,9 @@ fn burst_after_a_graze() {
         (16764, true),
     ]
     .to_vec();
-    let (oracle, grazes, _) = run_unit_oracle(&train);
-    assert!(!grazes.is_empty(), "the train must graze");
-    let fixed: Vec<f64> = run_unit_fixed(&train, 0)
-        .into_iter()
-        .map(f64::from)
-        .collect();
-    let inputs: Vec<f64> = train
-        .iter()
-        .scan(0.0, |t, &(gap, _)| {
-            *t += f64::from(gap);
-            Some(*t)
-        })
-        .collect();
-    compare(&fixed, &oracle, &grazes, &inputs, "unit").unwrap();
+    let (result, _, grazes) = unit_vs_oracle(&train);
+    assert!(grazes > 0, "the train must graze");
+    result.unwrap();
 }
 
 /// OPEN: a grid train (8 x 3, stride 2) a CI run drew where a spike of unit 21 near 323 ms lies
@@ -558,23 +561,5 @@ fn grid_train_180_us_off() {
         (812, 0, 0),
         (3248, 2, 1),
     ];
-    let layout = Dense::new(8, 3, 2).unwrap();
-    let fixed = run_grid_fixed(layout, &train, 0);
-    let mut net = OracleNetwork::new(OracleParams::default(), layout);
-    let mut oracle = Vec::new();
-    let mut t = 0.0;
-    for &(gap, x, y) in &train {
-        t += f64::from(gap);
-        net.event(t, x, y, &mut oracle);
-    }
-    net.flush(t + 1_000_000.0, &mut oracle);
-    let of = |set: &[(f64, u32)], unit: u32| -> Vec<f64> {
-        set.iter().filter(|s| s.1 == unit).map(|s| s.0).collect()
-    };
-    let f: Vec<f64> = fixed
-        .iter()
-        .filter(|s| s.1 == 21)
-        .map(|s| f64::from(s.0))
-        .collect();
-    compare(&f, &of(&oracle, 21), &of(&net.grazes, 21), &[], "unit 21").unwrap();
+    grid_vs_oracle(&train).unwrap();
 }
