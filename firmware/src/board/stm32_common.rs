@@ -1,8 +1,11 @@
 //! What the two STM32 boards share: the executors (the input task on an interrupt executor
 //! driven by the otherwise unused UART4 interrupt), the yaw frame queue to the UART task, the
-//! DWT cycle meter, and the input and status tasks.
+//! DWT cycle meter, the input and status tasks, and the camera they assume until a
+//! configuration frame says otherwise.
 
+use core_nostd::aer::config::{LayoutChoice, StreamConfig};
 use core_nostd::aer::yaw::FRAME_BYTES;
+use core_nostd::fixed::types::U16F16;
 use cortex_m::peripheral::DWT;
 use embassy_executor::{Executor, InterruptExecutor, SpawnError, SpawnToken};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
@@ -13,6 +16,34 @@ use static_cell::StaticCell;
 
 use super::stm32_link::SpiLink;
 use crate::app::{self, CostMeter, Overload, YawSink};
+
+/// Sensor the STM32 boards assume: DAVIS346, 346 x 260 px.
+const SENSOR: (u16, u16) = (346, 260);
+
+/// What a board runs until the AER stream sends a configuration frame
+/// (`docs/wire-formats.md`): a DAVIS346 (f = 226 px, principal point at the sensor's centre),
+/// stride 2, 1 kHz, on the widest dense layout `max_cells` cells hold: all 346 columns by as
+/// many rows as fit, centred on the principal row (full width gives the readout every column
+/// band; measured best on the F405, see `firmware/README.md`).
+pub const fn davis346_full_width(max_cells: usize) -> StreamConfig {
+    let rows = (max_cells / SENSOR.0 as usize) as u16;
+    let rows = if rows > SENSOR.1 { SENSOR.1 } else { rows };
+    StreamConfig {
+        width: SENSOR.0,
+        height: SENSOR.1,
+        focal_px: U16F16::const_from_int(226),
+        cx: U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2),
+        cy: U16F16::from_bits(((SENSOR.1 as u32 - 1) << 16) / 2),
+        layout: LayoutChoice::Window {
+            x0: 0,
+            y0: (SENSOR.1 - rows) / 2,
+            w: SENSOR.0,
+            h: rows,
+        },
+        stride: 2,
+        period_us: 1_000,
+    }
+}
 
 /// Yaw frames waiting for the USART.
 pub static YAW_OUT: Channel<CriticalSectionRawMutex, [u8; FRAME_BYTES], 64> = Channel::new();

@@ -19,9 +19,8 @@
 
 use core::mem::MaybeUninit;
 
-use core_nostd::aer::config::{LayoutChoice, StreamConfig};
+use core_nostd::aer::config::StreamConfig;
 use core_nostd::aer::yaw::FRAME_BYTES;
-use core_nostd::fixed::types::U16F16;
 use core_nostd::unit::Kernel;
 use defmt_rtt as _;
 use embassy_stm32::dma::{self, ReadableRingBuffer, TransferOptions};
@@ -43,38 +42,10 @@ bind_interrupts!(struct Irqs {
     DMA2_STREAM7 => dma::InterruptHandler<peripherals::DMA2_CH7>;
 });
 
-/// Sensor: DAVIS346, 346 x 260 px, f = 226 px.
-const SENSOR: (u16, u16) = (346, 260);
-/// Focal length (px), U16F16.
-const FOCAL_PX: U16F16 = U16F16::const_from_int(226);
-/// Principal point column (px): the sensor's centre, (width - 1) / 2.
-const CX: U16F16 = U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2);
-/// Which network runs until a configuration frame says otherwise: [`DENSE_STRIP`], chosen by
-/// measurement over the paper's boxes and a 192 x 28 window (`firmware/README.md`).
-const LAYOUT: LayoutChoice = DENSE_STRIP;
-/// Rows of the dense strip: as many whole sensor rows as the CCM holds (15 rows of 12-byte
-/// cells).
-const STRIP_ROWS: u16 = (MAX_CELLS / SENSOR.0 as usize) as u16;
-/// The largest full-width dense window that fits the CCM: 346 x 15 pixels (5190 cells of 12
-/// bytes, 62 280 B, 10 020 units), centred on the principal row. Full width gives the readout
-/// every column band.
-const DENSE_STRIP: LayoutChoice = LayoutChoice::Window {
-    x0: 0,
-    y0: (SENSOR.1 - STRIP_ROWS) / 2,
-    w: SENSOR.0,
-    h: STRIP_ROWS,
-};
-/// What runs until the AER stream sends a configuration frame (`docs/wire-formats.md`).
-const DEFAULTS: StreamConfig = StreamConfig {
-    width: SENSOR.0,
-    height: SENSOR.1,
-    focal_px: FOCAL_PX,
-    cx: CX,
-    cy: U16F16::from_bits(((SENSOR.1 as u32 - 1) << 16) / 2),
-    layout: LAYOUT,
-    stride: 2,
-    period_us: 1_000,
-};
+/// What runs until a configuration frame says otherwise: the full-width 346 x 15 dense strip of a
+/// DAVIS346 (5190 cells of 12 bytes, 62 280 B, 10 020 units), chosen by measurement over the
+/// paper's boxes and a 192 x 28 window (`firmware/README.md`).
+const DEFAULTS: StreamConfig = stm32_common::davis346_full_width(MAX_CELLS);
 /// Cells reserved in CCM: as many as its 64 KiB hold (the dense window is the largest layout).
 const MAX_CELLS: usize = 64 * 1024 / core::mem::size_of::<Cell>();
 /// SPI DMA ring size (bytes): 4 KiB is ~2 ms at 2 MB/s.

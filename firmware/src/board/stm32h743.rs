@@ -23,9 +23,8 @@
 
 use core::mem::MaybeUninit;
 
-use core_nostd::aer::config::{LayoutChoice, StreamConfig};
+use core_nostd::aer::config::StreamConfig;
 use core_nostd::aer::yaw::FRAME_BYTES;
-use core_nostd::fixed::types::U16F16;
 use core_nostd::unit::Kernel;
 use defmt_rtt as _;
 use embassy_stm32::dma::{self, ReadableRingBuffer, TransferOptions};
@@ -47,34 +46,10 @@ bind_interrupts!(struct Irqs {
     DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
 });
 
-/// Sensor: DAVIS346, 346 x 260 px, f = 226 px.
-const SENSOR: (u16, u16) = (346, 260);
-/// Focal length (px), U16F16.
-const FOCAL_PX: U16F16 = U16F16::const_from_int(226);
-/// Principal point column (px): the sensor's centre, (width - 1) / 2.
-const CX: U16F16 = U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2);
-/// Rows of the dense window: as many full sensor rows as the AXI SRAM holds.
-const WINDOW_ROWS: u16 = (MAX_CELLS / SENSOR.0 as usize) as u16;
-/// Which network runs: the largest dense window that fits the AXI SRAM, all 346 columns by
-/// 126 rows, centred (43 596 cells of 12 bytes, 523 152 B, 86 688 units); or
-/// `LayoutChoice::PaperBoxes`.
-const LAYOUT: LayoutChoice = LayoutChoice::Window {
-    x0: 0,
-    y0: (SENSOR.1 - WINDOW_ROWS) / 2,
-    w: SENSOR.0,
-    h: WINDOW_ROWS,
-};
-/// What runs until the AER stream sends a configuration frame (`docs/wire-formats.md`).
-const DEFAULTS: StreamConfig = StreamConfig {
-    width: SENSOR.0,
-    height: SENSOR.1,
-    focal_px: FOCAL_PX,
-    cx: CX,
-    cy: U16F16::from_bits(((SENSOR.1 as u32 - 1) << 16) / 2),
-    layout: LAYOUT,
-    stride: 2,
-    period_us: 1_000,
-};
+/// What runs until a configuration frame says otherwise: the largest dense window of a DAVIS346
+/// that fits the AXI SRAM, all 346 columns by 126 rows (43 596 cells of 12 bytes, 523 152 B,
+/// 86 688 units).
+const DEFAULTS: StreamConfig = stm32_common::davis346_full_width(MAX_CELLS);
 /// Cells the AXI SRAM holds (512 KiB of 12-byte cells).
 const MAX_CELLS: usize = 512 * 1024 / core::mem::size_of::<Cell>();
 /// SPI DMA ring size (bytes): 4 KiB is ~1 ms at 4 MB/s.
