@@ -7,7 +7,7 @@
 //! returned so that outputs can be put back on the recording's clock.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 use core_nostd::aer::events::{EventEncoder, Receiver};
@@ -15,8 +15,7 @@ use core_nostd::aer::frame::{FrameStats, SYNC};
 use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 
-use crate::formats::{self, Format, HostEvent};
-use crate::output::write_atomically;
+use crate::formats::{self, Format};
 
 /// When the sender can put one frame on the link: the frame ends at byte `end_byte` of the
 /// stream (exclusive), and its last event happened `t_us` µs after the stream's first event.
@@ -31,94 +30,24 @@ pub struct Arrival {
 impl Arrival {
     /// Bytes of one schedule entry on disk: `end_byte` then `t_us`, both u64 little-endian.
     pub const BYTES: usize = 16;
-}
 
-/// An AER stream with its time origin and the arrival schedule of its frames.
-#[derive(Clone, Debug, Default)]
-pub struct Encoded {
-    /// The stream bytes.
-    pub wire: Vec<u8>,
-    /// Time of the first event, µs on the recording's clock (0 without events).
-    pub t0_us: u64,
-    /// One entry per frame, in stream order.
-    pub arrivals: Vec<Arrival>,
-}
-
-/// Encodes events as an AER stream and records when each frame could be sent (an ideal
-/// sender puts a frame on the link as soon as its last event happened).
-///
-/// # Errors
-/// When an event's coordinates do not fit the format (0..=2047).
-pub fn encode_aer_timed(events: &[HostEvent]) -> Result<Encoded> {
-    let t0 = events.first().map_or(0, |e| e.t_us);
-    let mut enc = EventEncoder::new();
-    let mut wire = Vec::with_capacity(events.len() * 4 + 64);
-    let mut arrivals = Vec::with_capacity(events.len() / 200 + 1);
-    // Frames completed by `push(e)` hold the events before `e`.
-    let mut prev_t = 0u64;
-    for (i, e) in events.iter().enumerate() {
-        let rel = e.t_us.wrapping_sub(t0);
-        let ev = Event {
-            t_us: rel as u32,
-            x: e.x,
-            y: e.y,
-            on: e.on,
-        };
-        enc.push(ev, |f| {
-            wire.extend_from_slice(f);
-            arrivals.push(Arrival {
-                end_byte: wire.len() as u64,
-                t_us: prev_t,
-            });
-        })
-        .map_err(|err| anyhow::anyhow!("event {i}: {err}"))?;
-        prev_t = rel;
+    /// The entry as written in the schedule file.
+    pub fn to_bytes(self) -> [u8; Self::BYTES] {
+        let mut b = [0u8; Self::BYTES];
+        let (end, t) = b.split_at_mut(8);
+        end.copy_from_slice(&self.end_byte.to_le_bytes());
+        t.copy_from_slice(&self.t_us.to_le_bytes());
+        b
     }
-    enc.flush(|f| {
-        wire.extend_from_slice(f);
-        arrivals.push(Arrival {
-            end_byte: wire.len() as u64,
-            t_us: prev_t,
-        });
-    });
-    Ok(Encoded {
-        wire,
-        t0_us: t0,
-        arrivals,
-    })
-}
 
-/// Encodes events as an AER stream; returns the bytes and the time origin (the first event's
-/// time, µs; 0 without events).
-///
-/// # Errors
-/// When an event's coordinates do not fit the format (0..=2047).
-pub fn encode_aer(events: &[HostEvent]) -> Result<(Vec<u8>, u64)> {
-    let e = encode_aer_timed(events)?;
-    Ok((e.wire, e.t0_us))
-}
-
-/// The schedule file: [`Arrival::BYTES`] per frame.
-pub fn schedule_bytes(arrivals: &[Arrival]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(arrivals.len() * Arrival::BYTES);
-    for a in arrivals {
-        out.extend_from_slice(&a.end_byte.to_le_bytes());
-        out.extend_from_slice(&a.t_us.to_le_bytes());
+    /// An entry read back from the schedule file.
+    pub fn from_bytes(b: [u8; Self::BYTES]) -> Self {
+        let [e0, e1, e2, e3, e4, e5, e6, e7, t0, t1, t2, t3, t4, t5, t6, t7] = b;
+        Self {
+            end_byte: u64::from_le_bytes([e0, e1, e2, e3, e4, e5, e6, e7]),
+            t_us: u64::from_le_bytes([t0, t1, t2, t3, t4, t5, t6, t7]),
+        }
     }
-    out
-}
-
-/// Writes `events` as an AER stream file (complete or absent); returns the time origin.
-///
-/// # Errors
-/// When an event does not fit the format or the file cannot be written.
-pub fn write_aer(events: &[HostEvent], path: &Path) -> Result<u64> {
-    let (wire, t0) = encode_aer(events)?;
-    write_atomically(path, |w| {
-        w.write_all(&wire)
-            .with_context(|| format!("cannot write {}", path.display()))
-    })?;
-    Ok(t0)
 }
 
 /// Decodes an AER stream (any corruption tolerated) into events and the frame counters.
@@ -339,8 +268,13 @@ pub(crate) fn stream_aer(
             enc.push(ev, |f| {
                 frames.extend_from_slice(f);
                 bytes += f.len() as u64;
-                arrivals.extend_from_slice(&bytes.to_le_bytes());
-                arrivals.extend_from_slice(&prev_rel.to_le_bytes());
+                arrivals.extend_from_slice(
+                    &Arrival {
+                        end_byte: bytes,
+                        t_us: prev_rel,
+                    }
+                    .to_bytes(),
+                );
             })
             .map_err(|err| anyhow::anyhow!("event {n}: {err}"))?;
             prev_rel = rel;
@@ -359,8 +293,13 @@ pub(crate) fn stream_aer(
     enc.flush(|f| {
         frames.extend_from_slice(f);
         bytes += f.len() as u64;
-        arrivals.extend_from_slice(&bytes.to_le_bytes());
-        arrivals.extend_from_slice(&prev_rel.to_le_bytes());
+        arrivals.extend_from_slice(
+            &Arrival {
+                end_byte: bytes,
+                t_us: prev_rel,
+            }
+            .to_bytes(),
+        );
     });
     wire.writer().write_all(&frames).with_context(werr)?;
     if let Some(s) = schedule {
@@ -375,6 +314,28 @@ pub(crate) fn stream_aer(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::formats::{EventsInMemory, HostEvent};
+    use crate::output::AtomicFile;
+
+    /// `events` through [`stream_aer`]: the stream, its arrival schedule, the time origin.
+    fn stream(events: &[HostEvent]) -> Result<(Vec<u8>, Vec<Arrival>, u64)> {
+        let dir = tempfile::tempdir()?;
+        let (wire_path, sched_path) = (dir.path().join("s.aer"), dir.path().join("s.sched"));
+        let mut wire = AtomicFile::create(&wire_path)?;
+        let mut sched = AtomicFile::create(&sched_path)?;
+        let (_, t0) = stream_aer(
+            &mut EventsInMemory::new(events),
+            &mut wire,
+            Some(&mut sched),
+        )?;
+        wire.commit()?;
+        sched.commit()?;
+        let arrivals = std::fs::read(&sched_path)?
+            .chunks_exact(Arrival::BYTES)
+            .filter_map(|c| c.try_into().ok().map(Arrival::from_bytes))
+            .collect();
+        Ok((std::fs::read(&wire_path)?, arrivals, t0))
+    }
 
     #[test]
     fn stream_round_trip_relative_to_first_event() {
@@ -386,7 +347,7 @@ mod tests {
                 on: i % 3 == 0,
             })
             .collect();
-        let (wire, t0) = encode_aer(&events).unwrap();
+        let (wire, _, t0) = stream(&events).unwrap();
         assert_eq!(t0, events[0].t_us);
         assert!(looks_like_aer(&wire));
         let (out, st) = decode_aer(&wire);
@@ -408,15 +369,14 @@ mod tests {
                 on: i % 2 == 0,
             })
             .collect();
-        let enc = encode_aer_timed(&events).unwrap();
-        assert_eq!(encode_aer(&events).unwrap().0, enc.wire);
-        assert_eq!(enc.arrivals.last().unwrap().end_byte, enc.wire.len() as u64);
+        let (wire, arrivals, _) = stream(&events).unwrap();
+        assert_eq!(arrivals.last().unwrap().end_byte, wire.len() as u64);
         // Decoding frame by frame up to each entry's end gives events up to its time, and the
         // entry's time is that of the frame's last event.
         let mut seen = 0usize;
         let mut start = 0usize;
-        for a in &enc.arrivals {
-            let (evs, st) = decode_aer(&enc.wire[start..a.end_byte as usize]);
+        for a in &arrivals {
+            let (evs, st) = decode_aer(&wire[start..a.end_byte as usize]);
             assert_eq!(st.ok, 1, "one whole frame per entry");
             seen += evs.len();
             assert_eq!(u64::from(evs.last().unwrap().t_us), a.t_us);
@@ -424,11 +384,7 @@ mod tests {
             start = a.end_byte as usize;
         }
         assert_eq!(seen, events.len());
-        assert!(enc.arrivals.windows(2).all(|w| w[0].t_us <= w[1].t_us));
-        assert_eq!(
-            schedule_bytes(&enc.arrivals).len(),
-            enc.arrivals.len() * Arrival::BYTES
-        );
+        assert!(arrivals.windows(2).all(|w| w[0].t_us <= w[1].t_us));
     }
 
     #[test]
@@ -439,6 +395,6 @@ mod tests {
             y: 0,
             on: true,
         };
-        assert!(encode_aer(&[e]).is_err());
+        assert!(stream(&[e]).is_err());
     }
 }

@@ -298,26 +298,8 @@ pub fn run_pipeline(args: &Args, rec: &formats::Recording) -> Result<RunOutput> 
         &info,
         || Ok(rec.extent()),
     )?;
-    let mut source = Memory {
-        events: &rec.events,
-    };
+    let mut source = formats::EventsInMemory::new(&rec.events);
     run_stream(args, camera, &mut source, Samples::in_memory())
-}
-
-/// Events held in memory, handed out a chunk at a time.
-struct Memory<'a> {
-    events: &'a [HostEvent],
-}
-
-impl Chunks for Memory<'_> {
-    fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
-        out.clear();
-        let n = self.events.len().min(formats::stream::CHUNK_EVENTS);
-        let (head, rest) = self.events.split_at(n);
-        out.extend_from_slice(head);
-        self.events = rest;
-        Ok(n > 0)
-    }
 }
 
 /// Runs the pipeline over the events of `source`, piece by piece (see [`crate::timeline`]),

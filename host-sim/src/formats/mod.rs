@@ -43,7 +43,7 @@ use core_nostd::event::Event64;
 pub use csv::{write_csv, CsvWriter};
 pub use meta::Needs;
 pub use raw::write_evt3;
-pub use stream::{EventChunks, EventReader, RecordingInfo};
+pub use stream::{EventChunks, EventReader, EventsInMemory, RecordingInfo};
 
 /// One event on the host: absolute time in µs (`u64`), pixel and polarity.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

@@ -198,3 +198,26 @@ impl EventChunks for EventReader {
         Self::next_chunk(self, out)
     }
 }
+
+/// Events held in memory, handed out a chunk of [`CHUNK_EVENTS`] at a time.
+pub struct EventsInMemory<'a> {
+    events: &'a [HostEvent],
+}
+
+impl<'a> EventsInMemory<'a> {
+    /// A source over `events`.
+    pub fn new(events: &'a [HostEvent]) -> Self {
+        Self { events }
+    }
+}
+
+impl EventChunks for EventsInMemory<'_> {
+    fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
+        out.clear();
+        let n = self.events.len().min(CHUNK_EVENTS);
+        let (head, rest) = self.events.split_at(n);
+        out.extend_from_slice(head);
+        self.events = rest;
+        Ok(n > 0)
+    }
+}
