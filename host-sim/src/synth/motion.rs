@@ -522,7 +522,17 @@ fn drone_yaw<R: Rng>(rng: &mut R, duration_s: f64, max_rate: f64) -> Vec<YawTerm
         } else {
             let ramp_s = rng::uniform(rng, 0.15, 0.3);
             let hold = rng::uniform(rng, 0.2, 0.8);
-            t += held_rate(&mut terms, t, peak, ramp_s, hold);
+            terms.push(YawTerm::Step {
+                t0: t,
+                delta: peak,
+                ramp_s,
+            });
+            terms.push(YawTerm::Step {
+                t0: t + ramp_s + hold,
+                delta: -peak,
+                ramp_s,
+            });
+            t += 2.0 * ramp_s + hold;
         }
         if rng.gen::<f64>() < 0.7 {
             sign = -sign;
@@ -530,23 +540,6 @@ fn drone_yaw<R: Rng>(rng: &mut R, duration_s: f64, max_rate: f64) -> Vec<YawTerm
         t += rng::uniform(rng, 0.1, 0.8);
     }
     terms
-}
-
-/// Pushes a yaw rate `rate` held from `t0` for `hold` s between two raised-cosine ramps of
-/// `ramp_s` (a step up and the step back down, which cancel term by term once both are done);
-/// returns how long that takes, s.
-fn held_rate(terms: &mut Vec<YawTerm>, t0: f64, rate: f64, ramp_s: f64, hold: f64) -> f64 {
-    terms.push(YawTerm::Step {
-        t0,
-        delta: rate,
-        ramp_s,
-    });
-    terms.push(YawTerm::Step {
-        t0: t0 + ramp_s + hold,
-        delta: -rate,
-        ramp_s,
-    });
-    2.0 * ramp_s + hold
 }
 
 /// The yaw terms of [`MotionKind::Hover`]: after a first pause, segments of constant rate
@@ -560,7 +553,17 @@ fn hover_yaw<R: Rng>(rng: &mut R, duration_s: f64, max_rate: f64) -> Vec<YawTerm
         let rate = rng::sign(rng) * rng::uniform(rng, 0.1, 1.0) * max_rate;
         let ramp_s = rng::uniform(rng, 0.1, 0.3);
         let hold = rng::uniform(rng, 0.5, 1.5);
-        t += held_rate(&mut terms, t, rate, ramp_s, hold) + rng::uniform(rng, 0.4, 1.0);
+        terms.push(YawTerm::Step {
+            t0: t,
+            delta: rate,
+            ramp_s,
+        });
+        terms.push(YawTerm::Step {
+            t0: t + ramp_s + hold,
+            delta: -rate,
+            ramp_s,
+        });
+        t += 2.0 * ramp_s + hold + rng::uniform(rng, 0.4, 1.0);
     }
     terms
 }
