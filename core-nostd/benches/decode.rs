@@ -1,12 +1,6 @@
 //! Decoding throughput (events/s) of the EVT 3.0 and EVT 2.0 stream decoders on synthetic
 //! in-memory streams of 2 M events: a busy sensor's mix of single events and short same-row
 //! runs (EVT 3.0 vectors), about one event per µs.
-#![allow(
-    clippy::unwrap_used,
-    clippy::indexing_slicing,
-    clippy::float_arithmetic,
-    missing_docs
-)]
 
 use core_nostd::event::Event64;
 use core_nostd::evt::{evt2, Evt2Decoder, Evt3Decoder, Evt3Encoder, StreamDecoder};

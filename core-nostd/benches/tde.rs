@@ -1,15 +1,9 @@
 //! Cost of the fixed-point core per event: a FAC-only event, a TRG event that starts a burst
 //! (including emitting the whole burst), and one event of the dense network.
-#![allow(
-    clippy::unwrap_used,
-    clippy::indexing_slicing,
-    clippy::panic,
-    missing_docs
-)]
 
 use core_nostd::event::Event;
 use core_nostd::layout::{Dense, Layout};
-use core_nostd::network::{active_words, Cell, InputFilter, Network, Spike, UnitPair};
+use core_nostd::network::{active_words, Cell, InputFilter, NetState, Network, Spike, UnitPair};
 use core_nostd::unit::{Kernel, Tde};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 
@@ -65,9 +59,7 @@ fn network_events(c: &mut Criterion) {
     let mut net = Network::new(
         &k,
         layout,
-        &mut cells,
-        &mut units,
-        &mut active,
+        NetState::spiking(&mut cells, &mut units, &mut active),
         InputFilter::All,
     )
     .unwrap();

@@ -31,6 +31,7 @@ use crate::event::Event;
 use crate::exp_table::{scale_q31, ExpDecay};
 use crate::layout::{Dir, Layout};
 use crate::params::{Trace, TAU_SLOW_US};
+use crate::time::EventTime;
 use crate::unit::{elapsed_us, Kernel, UnitState};
 
 /// With the onset filter, a same-polarity event starts a new edge for the slow units only when
@@ -312,18 +313,64 @@ fn pack_unit(u: &UnitState) -> (u32, u32) {
     (u.i_trg.to_bits(), mem)
 }
 
-impl<'a, L: Layout> Network<'a, L> {
-    /// A network at rest. `cells` must hold `layout.cell_count()` cells. To run the units
-    /// (for sinks that want spikes), `units` holds as many pairs and `active` [`active_words`]
-    /// of that; otherwise both may be empty. All are reset.
-    pub fn new(
-        kernel: &'a Kernel,
-        layout: L,
+/// The state a network runs in, borrowed from the caller (no heap): one [`Cell`] per cell of
+/// the layout and, when the units run (sinks that want spikes), one [`UnitPair`] per cell and
+/// [`active_words`] of the cell count. Longer slices are fine (their front is used).
+pub struct NetState<'a> {
+    cells: &'a mut [Cell],
+    units: &'a mut [UnitPair],
+    active: &'a mut [u32],
+}
+
+impl<'a> NetState<'a> {
+    /// Cells only: the FAC traces, for sinks that decode bursts from their drives (the
+    /// calibrated readout); 12 bytes per pixel.
+    pub fn cells(cells: &'a mut [Cell]) -> Self {
+        Self {
+            cells,
+            units: &mut [],
+            active: &mut [],
+        }
+    }
+
+    /// Cells, unit pairs and the active bitset: the spiking network.
+    pub fn spiking(
         cells: &'a mut [Cell],
         units: &'a mut [UnitPair],
         active: &'a mut [u32],
+    ) -> Self {
+        Self {
+            cells,
+            units,
+            active,
+        }
+    }
+}
+
+/// The pixel's own FAC traces just before an event, and whether the event came late.
+struct OwnTraces {
+    /// FAC trace bits (see [`Cell::fac`]).
+    fac: u32,
+    slow: Trace,
+    late: bool,
+}
+
+impl<'a, L: Layout> Network<'a, L> {
+    /// A network at rest over `layout`, with its state in `state` (reset here).
+    ///
+    /// # Errors
+    /// When a slice of `state` is shorter than the layout needs.
+    pub fn new(
+        kernel: &'a Kernel,
+        layout: L,
+        state: NetState<'a>,
         filter: InputFilter,
     ) -> Result<Self, NetError> {
+        let NetState {
+            cells,
+            units,
+            active,
+        } = state;
         let needed = layout.cell_count();
         let given = cells.len();
         let Some(cells) = cells.get_mut(..needed) else {
@@ -435,9 +482,9 @@ impl<'a, L: Layout> Network<'a, L> {
         // The pixel's own FAC trace just before the event (decayed once, used twice).
         let (own_now, own_slow_now, late) = match self.cells.get(c) {
             Some(cell) => {
-                let d = t.wrapping_sub(cell.t_us);
-                let late = d >= 1 << 31 && cell.is_live();
-                let d = if d >= 1 << 31 { 0 } else { d };
+                let since = EventTime::from_us(t).since(EventTime::from_us(cell.t_us));
+                let late = since.is_none() && cell.is_live();
+                let d = since.unwrap_or(0);
                 let slow = if S::SLOW {
                     decay_slow(cell.slow(), d)
                 } else {
@@ -472,11 +519,6 @@ impl<'a, L: Layout> Network<'a, L> {
         let spiking = S::SPIKES && !self.units.is_empty();
         let mask = self.layout.units_at(ev.x, ev.y, c);
         let s = i32::from(self.layout.stride());
-        let w_trg = kernel.params().w_trg;
-        let drive_of = |fac: Trace| -> Trace {
-            let prod = (u64::from(w_trg.to_bits()) * u64::from(fac.to_bits())) >> 16;
-            Trace::from_bits(prod.min(u64::from(crate::params::TRACE_MAX.to_bits())) as u32)
-        };
         let mut fac = [Trace::ZERO; 2];
         let mut slow = [Trace::ZERO; 2];
         for (slot, dx) in [(0usize, -s), (1, s)] {
@@ -526,9 +568,9 @@ impl<'a, L: Layout> Network<'a, L> {
                 t_us: t,
                 x: ev.x,
                 y: ev.y,
-                drive: [drive_of(lr), drive_of(rl)],
+                drive: [kernel.drive(lr), kernel.drive(rl)],
                 own_fac: own,
-                slow_drive: [drive_of(slr), drive_of(srl)],
+                slow_drive: [kernel.drive(slr), kernel.drive(srl)],
                 own_slow,
             });
         }
@@ -580,11 +622,10 @@ impl<'a, L: Layout> Network<'a, L> {
             cell.t_us = t;
             return false;
         }
-        let dt = t.wrapping_sub(cell.t_us);
-        if dt >= 1 << 31 {
+        let Some(dt) = EventTime::from_us(t).since(EventTime::from_us(cell.t_us)) else {
             // The cell is ahead of `t` (an earlier event came late): nothing to advance.
             return true;
-        }
+        };
         let t0 = cell.t_us;
         let mut may_spike = false;
         if let (Some(pair), true) = (pair, dt > 0) {

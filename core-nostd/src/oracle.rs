@@ -535,7 +535,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
     }
 
     /// One event at time `t` (µs); pushes `(t_us, yaw rad/s, flags)` for every output before
-    /// it (flags as [`crate::readout::flags`]: stale, no evidence).
+    /// it (flags as [`crate::flags`]: stale, no evidence).
     pub fn event(
         &mut self,
         t: f64,
@@ -686,7 +686,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
                 }
             }
             let stale = if next - self.last_event > 100_000.0 {
-                crate::readout::flags::STALE
+                crate::flags::STALE
             } else {
                 0
             };
@@ -697,7 +697,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             }
             match est {
                 Some(v) => out.push((next, v, stale)),
-                None => out.push((next, 0.0, stale | crate::readout::flags::NO_EVIDENCE)),
+                None => out.push((next, 0.0, stale | crate::flags::NO_EVIDENCE)),
             }
             next += self.period;
         }

@@ -27,16 +27,7 @@ const INV_E_Q32: u128 = 1_580_030_169;
 /// tangential crossing, so this covers any window up to 2^24 µs).
 const MAX_NEWTON_STEPS: u32 = 40;
 
-/// Wrapping difference `to - from` in µs; 0 when `to` lies before `from` (difference >= 2^31).
-#[inline]
-pub fn elapsed_us(from: u32, to: u32) -> u32 {
-    let d = to.wrapping_sub(from);
-    if d >= 1 << 31 {
-        0
-    } else {
-        d
-    }
-}
+pub use crate::time::elapsed_us;
 
 /// Everything the fixed-point unit needs, precomputed from [`TdeParams`]: decay tables for
 /// `tau_F` and `tau_T` (= `tau_m`) and the drive coefficient.
@@ -112,12 +103,21 @@ impl Kernel {
         i_fac_now.saturating_add(w).min(TRACE_MAX)
     }
 
-    /// Applies one TRG event to a unit already advanced to the event time: `I_T += w_T · I_F(t-)`.
+    /// The drive a TRG event delivers to its unit: `w_T · I_F(t⁻)`, saturating at
+    /// [`TRACE_MAX`] (what the unit's TRG trace receives, and what a burst encodes).
+    #[inline]
+    pub fn drive(&self, i_fac_now: Trace) -> Trace {
+        let prod = (u64::from(self.params.w_trg.to_bits()) * u64::from(i_fac_now.to_bits())) >> 16;
+        Trace::from_bits(prod.min(u64::from(TRACE_MAX.to_bits())) as u32)
+    }
+
+    /// Applies one TRG event to a unit already advanced to the event time: `I_T += drive`.
     #[inline]
     pub fn trg_input(&self, unit: &mut UnitState, i_fac_now: Trace) {
-        let prod = (u64::from(self.params.w_trg.to_bits()) * u64::from(i_fac_now.to_bits())) >> 16;
-        let add = Trace::from_bits(prod.min(u64::from(u32::MAX)) as u32);
-        unit.i_trg = unit.i_trg.saturating_add(add).min(TRACE_MAX);
+        unit.i_trg = unit
+            .i_trg
+            .saturating_add(self.drive(i_fac_now))
+            .min(TRACE_MAX);
     }
 
     /// Advances `unit` by `dt` µs from absolute time `t0`, calling `on_spike(t)` for every spike in

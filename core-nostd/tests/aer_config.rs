@@ -1,14 +1,14 @@
 //! The configuration frame: every field survives the wire, other versions and bad values are
 //! refused, a corrupted frame never reaches the parser, and payload decoding passes it by.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use core_nostd::aer::config::{ConfigError, LayoutChoice, StreamConfig, CONFIG_BYTES};
+use core_nostd::aer::config::{ConfigError, CONFIG_BYTES, CONFIG_BYTES_V1};
 use core_nostd::aer::events::PayloadDecoder;
 use core_nostd::aer::frame::{FrameDecoder, Kind, MAX_FRAME};
 use core_nostd::fixed::types::U16F16;
+use core_nostd::settings::{LayoutChoice, ReadoutChoice, Settings, SettingsError};
 
-fn davis346(layout: LayoutChoice) -> StreamConfig {
-    StreamConfig {
+fn davis346(layout: LayoutChoice) -> Settings {
+    Settings {
         width: 346,
         height: 260,
         focal_px: U16F16::from_num(226.5),
@@ -17,10 +17,18 @@ fn davis346(layout: LayoutChoice) -> StreamConfig {
         layout,
         stride: 2,
         period_us: 1_000,
+        readout: ReadoutChoice::Calibrated,
+        tau_a_us: None,
     }
 }
 
-fn wire(cfg: &StreamConfig, seq: u16) -> Vec<u8> {
+/// The payload bytes of `cfg`.
+fn payload(cfg: &Settings) -> Vec<u8> {
+    let (p, n) = cfg.payload();
+    p[..n].to_vec()
+}
+
+fn wire(cfg: &Settings, seq: u16) -> Vec<u8> {
     let mut buf = [0u8; MAX_FRAME];
     let n = cfg.encode(0, seq, &mut buf).unwrap();
     buf[..n].to_vec()
@@ -41,17 +49,17 @@ fn every_field_survives_the_wire() {
     for (i, layout) in layouts.into_iter().enumerate() {
         let cfg = davis346(layout);
         let bytes = wire(&cfg, i as u16);
-        assert_eq!(bytes.len(), 14 + CONFIG_BYTES);
+        assert_eq!(bytes.len(), 14 + CONFIG_BYTES_V1);
         let mut dec = FrameDecoder::new();
         let mut got = Vec::new();
         dec.push(&bytes, |f| {
             assert_eq!(f.kind, Kind::Config);
-            got.push(StreamConfig::parse(f.payload));
+            got.push(Settings::parse(f.payload));
         });
         assert_eq!(got, vec![Ok(cfg)]);
     }
     // Another camera: a DAVIS240 with its own lens and a 500 Hz output.
-    let other = StreamConfig {
+    let other = Settings {
         width: 240,
         height: 180,
         focal_px: U16F16::from_num(199.1),
@@ -60,46 +68,72 @@ fn every_field_survives_the_wire() {
         layout: LayoutChoice::Dense,
         stride: 3,
         period_us: 2_000,
+        readout: ReadoutChoice::Calibrated,
+        tau_a_us: None,
     };
-    assert_eq!(StreamConfig::parse(&other.payload()), Ok(other));
+    assert_eq!(Settings::parse(&payload(&other)), Ok(other));
+    // What only version 2 says: another readout, another tau_A.
+    for (readout, tau_a_us) in [
+        (ReadoutChoice::Normalized, None),
+        (ReadoutChoice::Calibrated, Some(25_000)),
+        (ReadoutChoice::Normalized, Some(1_000_000)),
+    ] {
+        let v2 = Settings {
+            readout,
+            tau_a_us,
+            ..other
+        };
+        let p = payload(&v2);
+        assert_eq!((p[0], p.len()), (2, CONFIG_BYTES));
+        assert_eq!(Settings::parse(&p), Ok(v2));
+    }
 }
 
 #[test]
 fn unknown_versions_readouts_layouts_and_bad_values_are_refused() {
-    let good = davis346(LayoutChoice::Dense).payload();
+    let good = payload(&davis346(LayoutChoice::Dense));
     let with = |at: usize, v: &[u8]| {
-        let mut p = good;
+        let mut p = good.clone();
         p[at..at + v.len()].copy_from_slice(v);
-        StreamConfig::parse(&p)
+        Settings::parse(&p)
     };
-    assert_eq!(with(0, &[2]), Err(ConfigError::Version(2)));
+    assert_eq!(with(0, &[3]), Err(ConfigError::Version(3)));
     assert_eq!(with(0, &[0]), Err(ConfigError::Version(0)));
-    assert_eq!(with(1, &[1]), Err(ConfigError::Readout(1)));
+    assert_eq!(with(0, &[2]), Err(ConfigError::Length(CONFIG_BYTES_V1)));
+    assert_eq!(with(1, &[1]), Err(ConfigError::Readout(1))); // normalized needs version 2
+    assert_eq!(with(1, &[2]), Err(ConfigError::Readout(2)));
     assert_eq!(with(2, &[3]), Err(ConfigError::Layout(3)));
-    assert_eq!(
-        StreamConfig::parse(&good[..32]),
-        Err(ConfigError::Length(32))
-    );
-    assert_eq!(StreamConfig::parse(&[]), Err(ConfigError::Version(0)));
-    for (at, v) in [
-        (4, 0u16.to_le_bytes()),    // width 0
-        (4, 2049u16.to_le_bytes()), // wider than the AER format
-        (6, 0u16.to_le_bytes()),    // height 0
-        (8, 0u16.to_le_bytes()),    // stride 0
-        (8, 346u16.to_le_bytes()),  // stride >= width
+    assert_eq!(Settings::parse(&good[..32]), Err(ConfigError::Length(32)));
+    assert_eq!(Settings::parse(&[]), Err(ConfigError::Version(0)));
+    let value = |e| Err(ConfigError::Value(e));
+    for (at, v, e) in [
+        (4, 0u16.to_le_bytes(), SettingsError::Sensor), // width 0
+        (4, 2049u16.to_le_bytes(), SettingsError::Sensor), // wider than the AER format
+        (6, 0u16.to_le_bytes(), SettingsError::Sensor), // height 0
+        (8, 0u16.to_le_bytes(), SettingsError::Layout), // stride 0
+        (8, 346u16.to_le_bytes(), SettingsError::Layout), // stride >= width
     ] {
-        assert_eq!(with(at, &v), Err(ConfigError::Value), "field at {at}");
+        assert_eq!(with(at, &v), value(e), "field at {at}");
     }
-    assert_eq!(with(12, &0u32.to_le_bytes()), Err(ConfigError::Value)); // focal length 0
-    assert_eq!(with(32, &0u32.to_le_bytes()), Err(ConfigError::Value)); // period 0
+    assert_eq!(with(12, &0u32.to_le_bytes()), value(SettingsError::Focal));
+    assert_eq!(with(32, &0u32.to_le_bytes()), value(SettingsError::Period));
     let window = |x0: u16, y0: u16, w: u16, h: u16| {
-        StreamConfig::parse(&davis346(LayoutChoice::Window { x0, y0, w, h }).payload())
+        Settings::parse(&payload(&davis346(LayoutChoice::Window { x0, y0, w, h })))
     };
     assert!(window(0, 0, 346, 260).is_ok());
-    assert_eq!(window(1, 0, 346, 260), Err(ConfigError::Value));
-    assert_eq!(window(0, 200, 346, 61), Err(ConfigError::Value));
-    assert_eq!(window(0, 0, 2, 10), Err(ConfigError::Value)); // not wider than the stride
-    assert_eq!(window(0, 0, 100, 0), Err(ConfigError::Value));
+    assert_eq!(window(1, 0, 346, 260), value(SettingsError::Layout));
+    assert_eq!(window(0, 200, 346, 61), value(SettingsError::Layout));
+    assert_eq!(window(0, 0, 2, 10), value(SettingsError::Layout)); // not wider than the stride
+    assert_eq!(window(0, 0, 100, 0), value(SettingsError::Layout));
+    // Version 2: tau_A above a second.
+    let long_tau = Settings {
+        tau_a_us: Some(2_000_000),
+        ..davis346(LayoutChoice::Dense)
+    };
+    assert_eq!(
+        Settings::parse(&payload(&long_tau)),
+        value(SettingsError::TauA)
+    );
 }
 
 #[test]

@@ -1,6 +1,5 @@
 //! Corrupted AER streams: bit flips, dropped and inserted bytes, truncation, pure garbage.
 //! Every frame that arrived intact is recovered, the counters add up, nothing panics.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use core_nostd::aer::events::{decode_events, EventEncoder};
 use core_nostd::aer::frame::{Frame, FrameDecoder};

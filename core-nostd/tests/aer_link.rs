@@ -1,7 +1,6 @@
 //! The SPI link receiver against a simulated STM32 SPI slave with injected faults: spurious and
 //! lost SCK edges (bit slips), NSS glitches, mode faults and overruns. After each fault the
 //! next whole frame must be received, nothing false may come out, and each fault is counted.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use core_nostd::aer::frame::{encode_frame, FrameDecoder, FrameStats, Kind, MAX_FRAME};
 use core_nostd::aer::link::{LinkEvent, LinkReceiver, LinkStats};

@@ -2,21 +2,16 @@
 //! a small sensor at known image speeds give back the yaw rate those speeds imply, translation
 //! (the halves moving apart) cancels, slow edges are timed by the slow units, and motion in one
 //! part of the view alone is not called a rotation.
-#![allow(
-    clippy::unwrap_used,
-    clippy::expect_used,
-    clippy::indexing_slicing,
-    clippy::panic,
-    missing_docs
-)]
 
 use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
+use core_nostd::flags;
 use core_nostd::layout::{Dense, Layout};
-use core_nostd::network::{Cell, InputFilter, Network};
-use core_nostd::pipeline::{self, Pipeline};
+use core_nostd::network::{Cell, InputFilter, NetState, Network};
+use core_nostd::pipeline::Pipeline;
 use core_nostd::readout::calibrated::{self, Calibrated, Calibration};
-use core_nostd::readout::{flags, YawSample};
+use core_nostd::readout::YawSample;
+use core_nostd::settings::Settings;
 use core_nostd::unit::Kernel;
 
 /// Edges at pseudo-random spacing move at `u` px/s (negative = leftwards); each crossing of a
@@ -78,13 +73,10 @@ fn run_events(evs: &[Event]) -> Vec<YawSample> {
     let layout = Dense::new(w, h, 2).unwrap();
     let mut cells = vec![Cell::default(); layout.cell_count()];
     // 4,560 units: a sparse layout, so the readout integrates over 100 ms.
-    let cal = Calibration::for_units(
-        U16F16::from_num(F),
-        U16F16::from_num(47.5),
-        U16F16::from_num(11.5),
-        layout.unit_count(),
-    );
-    let mut p = pipeline::calibrated(&kernel, layout, &mut cells, cal).unwrap();
+    let settings = Settings::for_sensor(w, h, U16F16::from_num(F));
+    let mut p = settings
+        .build(&kernel, NetState::cells(&mut cells))
+        .unwrap();
     let mut out = Vec::new();
     for &ev in evs {
         p.event(ev, &mut |s| out.push(s));
@@ -214,9 +206,7 @@ fn no_events_means_stale_and_zero() {
     let net = Network::new(
         &kernel,
         layout,
-        &mut cells,
-        &mut [],
-        &mut [],
+        NetState::cells(&mut cells),
         InputFilter::Onsets { gap_us: 50_000 },
     )
     .unwrap();

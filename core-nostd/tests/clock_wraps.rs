@@ -1,20 +1,12 @@
 //! The pipeline across several wraps of the u32 µs clock (every 71.6 min): the same events
 //! started just before a wrap give exactly the output of a run whose clock starts at 0.
-#![allow(
-    clippy::unwrap_used,
-    clippy::expect_used,
-    clippy::indexing_slicing,
-    clippy::panic,
-    missing_docs
-)]
 
 use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::{Dense, Layout};
-use core_nostd::network::Cell;
-use core_nostd::pipeline;
-use core_nostd::readout::calibrated::Calibration;
+use core_nostd::network::{Cell, NetState};
 use core_nostd::readout::YawSample;
+use core_nostd::settings::Settings;
 use core_nostd::unit::Kernel;
 
 /// Event times relative to the start (u64 µs): every 10 s, 400 ms of a rigid pattern of edges
@@ -49,16 +41,11 @@ fn run(events: &[(u64, u16, u16, bool)], clock0: u32) -> Vec<YawSample> {
     let k = Kernel::DEFAULT;
     let layout = Dense::new(96, 24, 2).unwrap();
     let mut cells = vec![Cell::default(); layout.cell_count()];
-    let cal = Calibration {
+    let settings = Settings {
         period_us: 100_000,
-        ..Calibration::for_units(
-            U16F16::from_num(200),
-            U16F16::from_num(47.5),
-            U16F16::from_num(11.5),
-            layout.unit_count(),
-        )
+        ..Settings::for_sensor(96, 24, U16F16::from_num(200))
     };
-    let mut p = pipeline::calibrated(&k, layout, &mut cells, cal).unwrap();
+    let mut p = settings.build(&k, NetState::cells(&mut cells)).unwrap();
     let mut out = Vec::new();
     for &(t, x, y, on) in events {
         let ev = Event {

@@ -1,7 +1,6 @@
 //! EVT 2.0 / 2.1 / 3.0 decoders and the EVT 3.0 encoder: word sequences written from the
 //! format specifications, time wrap, chunk boundaries, counters, truncation; random bytes never
 //! panic; encode -> decode gives the events back.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use core_nostd::event::Event64;
 use core_nostd::evt::{

@@ -1,17 +1,9 @@
 //! Random event trains: the fixed-point core against the f64 oracle, on one unit and on small
 //! pixel grids; and the u32 clock wrap.
-#![allow(
-    clippy::unwrap_used,
-    clippy::expect_used,
-    clippy::indexing_slicing,
-    clippy::float_arithmetic,
-    clippy::panic,
-    missing_docs
-)]
 
 use core_nostd::event::Event;
 use core_nostd::layout::{Dense, Layout};
-use core_nostd::network::{active_words, Cell, InputFilter, Network, Spike, UnitPair};
+use core_nostd::network::{active_words, Cell, InputFilter, NetState, Network, Spike, UnitPair};
 use core_nostd::oracle::{OracleNetwork, OracleParams, OracleTde, GRAZE_MARGIN};
 use core_nostd::unit::{Kernel, Tde};
 use proptest::prelude::*;
@@ -224,9 +216,7 @@ fn run_grid_fixed(layout: Dense, train: &[(u32, u16, u16)], t0: u32) -> Vec<(u32
     let mut net = Network::new(
         &k,
         layout,
-        &mut cells,
-        &mut units,
-        &mut active,
+        NetState::spiking(&mut cells, &mut units, &mut active),
         InputFilter::All,
     )
     .unwrap();

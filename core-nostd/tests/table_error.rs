@@ -1,13 +1,5 @@
 //! Error of the exponential lookup tables against `f64::exp`, over every table entry and over the
 //! composed decay for every input below the horizon.
-#![allow(
-    clippy::unwrap_used,
-    clippy::indexing_slicing,
-    clippy::float_arithmetic,
-    clippy::cast_precision_loss,
-    clippy::panic,
-    missing_docs
-)]
 
 use core_nostd::exp_table::{ExpDecay, Part, DECAY_HORIZON_US, ONE_Q31};
 

@@ -1,12 +1,4 @@
 //! The fixed-point unit against the f64 oracle, and the oracle against model.md's reference table.
-#![allow(
-    clippy::unwrap_used,
-    clippy::expect_used,
-    clippy::indexing_slicing,
-    clippy::float_arithmetic,
-    clippy::panic,
-    missing_docs
-)]
 
 use core_nostd::oracle::{self, OracleParams};
 use core_nostd::params::TdeParams;

@@ -2,8 +2,8 @@
 //! 178,880 units, calibrated readout at 1 kHz) on a generated recording of about 1.9 M events.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use host_sim::commands::run::{run_pipeline, Args, ReadoutKind};
 use host_sim::formats::{self, Format, Recording};
+use host_sim::pipeline::{run_pipeline, ReadoutKind, RunOptions};
 use host_sim::synth::{self, SynthConfig};
 
 fn recording() -> Recording {
@@ -19,10 +19,10 @@ fn recording() -> Recording {
     }
 }
 
-fn args(readout: ReadoutKind) -> Args {
-    Args {
+fn args(readout: ReadoutKind) -> RunOptions {
+    RunOptions {
         readout,
-        ..Args::new("bench".into(), "unused".into())
+        ..RunOptions::default()
     }
 }
 

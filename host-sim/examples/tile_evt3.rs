@@ -15,7 +15,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 use host_sim::formats::raw::Evt3Writer;
-use host_sim::formats::{self, HostEvent};
+use host_sim::formats::{self, Event64};
 
 /// Counts the bytes that pass through.
 struct Counting<W> {
@@ -59,11 +59,11 @@ fn main() -> Result<()> {
     let mut n = 0u64;
     {
         let mut writer = Evt3Writer::new(&mut sink, &out, w, h);
-        let mut shifted: Vec<HostEvent> = Vec::with_capacity(rec.events.len());
+        let mut shifted: Vec<Event64> = Vec::with_capacity(rec.events.len());
         let mut k = 0u64;
         loop {
             shifted.clear();
-            shifted.extend(rec.events.iter().map(|e| HostEvent {
+            shifted.extend(rec.events.iter().map(|e| Event64 {
                 t_us: e.t_us + k * period,
                 ..*e
             }));

@@ -55,7 +55,11 @@ pub enum Command {
     /// Write a recording as the AER-over-SPI stream and print the firmware's settings
     /// (used by `cargo xtask qemu`).
     #[command(hide = true)]
-    AerStream(crate::aer_stream::Args),
+    AerStream(commands::aer_stream::Args),
+    /// Print the settings the flags of `run` give, without a recording (used by `cargo xtask
+    /// qemu` for an AER stream input).
+    #[command(hide = true)]
+    Settings(commands::settings::Args),
 }
 
 /// Parses the arguments, runs the command, maps errors to one line and exit code 2.
@@ -76,7 +80,8 @@ pub fn main() -> ExitCode {
         Command::Synth(args) => commands::synth::run(args),
         Command::Eval(args) => commands::eval::run(args),
         Command::YawDecode(args) => commands::yaw_decode::run(args),
-        Command::AerStream(args) => crate::aer_stream::run(args),
+        Command::AerStream(args) => commands::aer_stream::run(args),
+        Command::Settings(args) => commands::settings::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -8,6 +8,7 @@ pub mod commands;
 pub mod eval;
 pub mod formats;
 pub mod output;
+pub mod pipeline;
 pub mod plot;
 pub mod samples;
 pub mod synth;

@@ -1,5 +1,7 @@
 //! Output files that are either complete or absent: written to a temporary file beside the
-//! target and renamed into place only when everything was written.
+//! target and renamed into place only when everything was written. A command with several
+//! outputs puts them in place together ([`commit_all`], [`StagedDir`]), after all of them were
+//! written, so that a failure leaves none of them.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -48,13 +50,19 @@ impl AtomicFile {
     /// # Errors
     /// When the data cannot be written or the file cannot be renamed.
     pub fn commit(mut self) -> Result<()> {
+        self.finish_writing()?;
+        std::fs::rename(&self.tmp, &self.path)
+            .with_context(|| format!("cannot write {}", self.path.display()))?;
+        self.committed = true;
+        Ok(())
+    }
+
+    /// Flushes and syncs the temporary file.
+    fn finish_writing(&mut self) -> Result<()> {
         self.w
             .flush()
             .with_context(|| format!("cannot write {}", self.path.display()))?;
         self.w.get_ref().sync_all().ok();
-        std::fs::rename(&self.tmp, &self.path)
-            .with_context(|| format!("cannot write {}", self.path.display()))?;
-        self.committed = true;
         Ok(())
     }
 }
@@ -84,14 +92,218 @@ pub fn render_atomically<F>(path: &Path, draw: F) -> Result<()>
 where
     F: FnOnce(&Path) -> Result<()>,
 {
-    let tmp = temp_path(path, ".png");
-    let result = draw(&tmp).and_then(|()| {
-        std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    render_staged(path, draw)?.commit()
+}
+
+/// [`render_atomically`] without the rename: the image stays at its temporary path until
+/// [`StagedPath::commit`] (or [`commit_all`], with the other outputs of the command), and is
+/// removed if dropped before.
+///
+/// # Errors
+/// When `draw` fails (the temporary file is removed then).
+pub fn render_staged<F>(path: &Path, draw: F) -> Result<StagedPath>
+where
+    F: FnOnce(&Path) -> Result<()>,
+{
+    let staged = StagedPath::new(path, ".png");
+    draw(&staged.tmp)?;
+    Ok(staged)
+}
+
+/// A file that another library writes by its path (a PNG through plotters): written at a
+/// temporary path beside `path`, renamed to `path` by [`StagedPath::commit`] and removed if
+/// dropped before.
+pub struct StagedPath {
+    path: PathBuf,
+    tmp: PathBuf,
+    committed: bool,
+}
+
+impl StagedPath {
+    /// The temporary path for `path` (ending in `suffix`, e.g. `.png` for a writer that picks
+    /// the format by extension); nothing is created.
+    #[must_use]
+    pub fn new(path: &Path, suffix: &str) -> Self {
+        Self {
+            path: path.to_path_buf(),
+            tmp: temp_path(path, suffix),
+            committed: false,
+        }
     }
-    result
+
+    /// Where to write.
+    #[must_use]
+    pub fn tmp(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// The final path.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Renames the file into place.
+    ///
+    /// # Errors
+    /// When it cannot be renamed.
+    pub fn commit(mut self) -> Result<()> {
+        std::fs::rename(&self.tmp, &self.path)
+            .with_context(|| format!("cannot write {}", self.path.display()))?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for StagedPath {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// One output of a command, written but not in place yet.
+pub enum Staged {
+    /// Written through [`AtomicFile`].
+    File(AtomicFile),
+    /// Written by path ([`render_staged`]).
+    Path(StagedPath),
+}
+
+impl From<AtomicFile> for Staged {
+    fn from(f: AtomicFile) -> Self {
+        Self::File(f)
+    }
+}
+
+impl From<StagedPath> for Staged {
+    fn from(p: StagedPath) -> Self {
+        Self::Path(p)
+    }
+}
+
+/// Puts the outputs of one command in place together, once every one of them was written:
+/// the files are flushed first, a target that is a folder is refused before anything moves,
+/// and if a rename still fails the outputs already moved are removed again, so that the
+/// command leaves all of its outputs or none (and no temporary file).
+///
+/// # Errors
+/// When a file cannot be written or renamed.
+pub fn commit_all(mut outputs: Vec<Staged>) -> Result<()> {
+    for o in &mut outputs {
+        if let Staged::File(f) = o {
+            f.finish_writing()?;
+        }
+    }
+    let moves: Vec<(PathBuf, PathBuf)> = outputs
+        .iter()
+        .map(|o| match o {
+            Staged::File(f) => (f.tmp.clone(), f.path.clone()),
+            Staged::Path(p) => (p.tmp.clone(), p.path.clone()),
+        })
+        .collect();
+    place_together(&moves)?;
+    for o in &mut outputs {
+        match o {
+            Staged::File(f) => f.committed = true,
+            Staged::Path(p) => p.committed = true,
+        }
+    }
+    Ok(())
+}
+
+/// Renames each `(from, to)`; refuses a `to` that is a folder before renaming anything, and on
+/// a failed rename removes the `to`s renamed before it.
+fn place_together(moves: &[(PathBuf, PathBuf)]) -> Result<()> {
+    if let Some((_, to)) = moves.iter().find(|(_, to)| to.is_dir()) {
+        bail!("cannot write {}: it is a folder", to.display());
+    }
+    for (i, (from, to)) in moves.iter().enumerate() {
+        if let Err(e) = std::fs::rename(from, to) {
+            for (_, done) in &moves[..i] {
+                let _ = std::fs::remove_file(done);
+            }
+            return Err(e).with_context(|| format!("cannot write {}", to.display()));
+        }
+    }
+    Ok(())
+}
+
+/// A folder of outputs written by functions that take a folder (a scene's files): they are
+/// written into a hidden staging folder inside it ([`StagedDir::path`]) and moved into the
+/// folder together by [`StagedDir::commit`]; if dropped before, the staging folder is removed
+/// (and the folder too when this created it and it is empty).
+pub struct StagedDir {
+    dir: PathBuf,
+    tmp: PathBuf,
+    created: bool,
+    committed: bool,
+}
+
+impl StagedDir {
+    /// Creates `dir` (when missing) and the staging folder in it.
+    ///
+    /// # Errors
+    /// When either cannot be created.
+    pub fn create(dir: &Path) -> Result<Self> {
+        let created = !dir.exists();
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let name = dir
+            .file_name()
+            .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+        let tmp = dir.join(format!(".{name}.partial-{}", std::process::id()));
+        let staged = Self {
+            dir: dir.to_path_buf(),
+            tmp,
+            created,
+            committed: false,
+        };
+        std::fs::create_dir(&staged.tmp)
+            .with_context(|| format!("cannot create {}", staged.tmp.display()))?;
+        Ok(staged)
+    }
+
+    /// The staging folder, to write into.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// Moves every file of the staging folder into the folder (as [`commit_all`] does) and
+    /// removes the staging folder.
+    ///
+    /// # Errors
+    /// When a file cannot be moved (none is left moved then).
+    pub fn commit(mut self) -> Result<()> {
+        let mut names = Vec::new();
+        let entries = std::fs::read_dir(&self.tmp)
+            .with_context(|| format!("cannot read {}", self.tmp.display()))?;
+        for e in entries {
+            let e = e.with_context(|| format!("cannot read {}", self.tmp.display()))?;
+            names.push(e.file_name());
+        }
+        names.sort();
+        let moves: Vec<(PathBuf, PathBuf)> = names
+            .iter()
+            .map(|n| (self.tmp.join(n), self.dir.join(n)))
+            .collect();
+        place_together(&moves)?;
+        self.committed = true;
+        let _ = std::fs::remove_dir(&self.tmp);
+        Ok(())
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.tmp);
+            if self.created {
+                let _ = std::fs::remove_dir(&self.dir);
+            }
+        }
+    }
 }
 
 /// Refuses an output that is one of the inputs (or another output): writing it would destroy

@@ -1,6 +1,6 @@
 //! Where `host-sim run` puts its samples, as they come: straight into the CSV (calibrated
 //! readout), through a spill file that is divided by the peak at the end (normalized readout,
-//! whose scale is only known then), or into memory (the library's [`crate::commands::run::run_pipeline`]);
+//! whose scale is only known then), or into memory (the library's [`crate::pipeline::run_pipeline`]);
 //! plus a bounded copy for the plot.
 
 use std::fs::File;
@@ -16,7 +16,7 @@ use crate::output::AtomicFile;
 pub const PLOT_POINTS: usize = 1 << 20;
 
 /// Every `step`-th sample, at most [`PLOT_POINTS`] of them.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Decimated {
     /// Times (s).
     pub t: Vec<f64>,
@@ -27,7 +27,8 @@ pub struct Decimated {
 }
 
 impl Decimated {
-    fn push(&mut self, t: f64, v: f64) {
+    /// Adds the next sample; decimators fed the same number of samples keep the same ones.
+    pub fn push(&mut self, t: f64, v: f64) {
         if self.step == 0 {
             self.step = 1;
         }
@@ -99,7 +100,7 @@ impl Samples {
     }
 
     /// Samples written to the CSV `path` (`t_s,yaw_rate_rad_s,flags`, or `t_s,yaw_norm` when
-    /// `normalized`), which appears when [`Samples::commit`] is called.
+    /// `normalized`), which appears when [`Finished::csv`] is committed.
     ///
     /// # Errors
     /// When the files cannot be created.
@@ -167,7 +168,7 @@ impl Samples {
 
     /// The kept samples (in memory) and the plot points; for a normalized CSV, divides the
     /// spilled samples by their peak |value| (the paper's normalisation over the whole
-    /// recording) into the CSV. The CSV is not in place until [`Samples::commit`].
+    /// recording) into the CSV. The CSV is not in place until [`AtomicFile::commit`].
     ///
     /// # Errors
     /// When the output cannot be written.

@@ -21,7 +21,7 @@
 
 use anyhow::Result;
 
-use crate::formats::{EventChunks, HostEvent};
+use crate::formats::{Event64, EventChunks};
 
 /// A forward step between consecutive events above this (µs, 10 min) starts a new piece.
 pub const RESTART_GAP_US: u64 = 600_000_000;
@@ -29,9 +29,7 @@ pub const RESTART_GAP_US: u64 = 600_000_000;
 /// A backward step between consecutive events above this (µs, 100 ms) starts a new piece.
 pub const RESTART_BACK_US: u64 = 100_000;
 
-/// Output flag (bit 6, on the first sample of a piece after a gap or a backward jump): the
-/// pipeline restarted. Host output only; bits 0..=5 are the yaw frame's.
-pub const RESTART: u8 = 1 << 6;
+pub use core_nostd::flags::RESTART;
 
 /// Counts of the recording's time discontinuities.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -56,11 +54,11 @@ impl TimeJumps {
 /// A recording's events, split into pieces of continuous time.
 pub struct Pieces<'r> {
     reader: &'r mut dyn EventChunks,
-    chunk: Vec<HostEvent>,
+    chunk: Vec<Event64>,
     pos: usize,
     prev: Option<u64>,
     /// The event that ended the current piece (the first of the next).
-    pending: Option<HostEvent>,
+    pending: Option<Event64>,
     /// Discontinuities so far.
     pub jumps: TimeJumps,
     /// Events read so far.
@@ -82,7 +80,7 @@ impl<'r> Pieces<'r> {
     }
 
     #[inline]
-    fn pull(&mut self) -> Result<Option<HostEvent>> {
+    fn pull(&mut self) -> Result<Option<Event64>> {
         if let Some(&e) = self.chunk.get(self.pos) {
             self.pos += 1;
             self.events += 1;
@@ -104,7 +102,7 @@ impl<'r> Pieces<'r> {
     ///
     /// # Errors
     /// When the recording cannot be read.
-    pub fn next_piece(&mut self) -> Result<Option<HostEvent>> {
+    pub fn next_piece(&mut self) -> Result<Option<Event64>> {
         if let Some(e) = self.pending.take() {
             return Ok(Some(e));
         }
@@ -120,9 +118,9 @@ impl<'r> Pieces<'r> {
     ///
     /// # Errors
     /// When the recording cannot be read, or the first error of `f`.
-    pub fn for_each<F: FnMut(&HostEvent) -> Result<()>>(
+    pub fn for_each<F: FnMut(&Event64) -> Result<()>>(
         &mut self,
-        first: HostEvent,
+        first: Event64,
         mut f: F,
     ) -> Result<()> {
         f(&first)?;
@@ -142,7 +140,7 @@ impl<'r> Pieces<'r> {
     ///
     /// # Errors
     /// When the recording cannot be read.
-    pub fn next_slice(&mut self) -> Result<&[HostEvent]> {
+    pub fn next_slice(&mut self) -> Result<&[Event64]> {
         if self.pending.is_some() {
             return Ok(&[]);
         }
@@ -192,12 +190,12 @@ mod tests {
     struct Times(Vec<u64>);
 
     impl EventChunks for Times {
-        fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
+        fn next_chunk(&mut self, out: &mut Vec<Event64>) -> Result<bool> {
             out.clear();
             let n = self.0.len().min(3);
-            out.extend(self.0.drain(..n).map(|t_us| HostEvent {
+            out.extend(self.0.drain(..n).map(|t_us| Event64 {
                 t_us,
-                ..HostEvent::default()
+                ..Event64::default()
             }));
             Ok(n > 0)
         }

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use host_sim::formats::{self, Format, HostEvent};
+use host_sim::formats::{self, Event64, Format};
 use host_sim::testdata::shared_data;
 
 mod common;
@@ -77,12 +77,12 @@ fn real_recordings_detect_format_size_and_count() {
 }
 
 /// Events of a `.raw` EVT 3.0 file decoded by the `evt3` crate.
-fn evt3_crate(path: &Path) -> Vec<HostEvent> {
+fn evt3_crate(path: &Path) -> Vec<Event64> {
     let mut d = evt3::Evt3Decoder::new();
     let r = d.decode_file(path).unwrap();
     r.cd_events
         .iter()
-        .map(|e| HostEvent {
+        .map(|e| Event64 {
             t_us: e.timestamp,
             x: e.x,
             y: e.y,
@@ -111,10 +111,10 @@ fn evt3_crate_reads_our_evt3_files() {
         // minus the offset (a multiple of 2^24 µs).
         let origin = rec.events[0].t_us & !((1u64 << 24) - 1);
         let theirs = evt3_crate(&out);
-        let expect: Vec<HostEvent> = rec
+        let expect: Vec<Event64> = rec
             .events
             .iter()
-            .map(|e| HostEvent {
+            .map(|e| Event64 {
                 t_us: e.t_us - origin,
                 ..*e
             })

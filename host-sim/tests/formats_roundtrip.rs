@@ -7,7 +7,7 @@ use std::io::Write;
 use std::path::Path;
 
 use core_nostd::evt::{evt2, evt21};
-use host_sim::formats::{self, Format, HostEvent};
+use host_sim::formats::{self, Event64, Format};
 use host_sim::testdata::shared_data;
 
 mod common;
@@ -66,10 +66,10 @@ fn dev01_round_trips_through_evt3() {
 fn evt3_writer_keeps_the_sensor_size_and_handles_long_gaps() {
     let tmp = tempfile::tempdir().unwrap();
     // Events far apart (several 2^24 µs wraps between them) and far from zero.
-    let events: Vec<HostEvent> = [0u64, 5, 5, 17_000_000, 60_000_000, 60_000_001, 400_000_000]
+    let events: Vec<Event64> = [0u64, 5, 5, 17_000_000, 60_000_000, 60_000_001, 400_000_000]
         .iter()
         .enumerate()
-        .map(|(i, &dt)| HostEvent {
+        .map(|(i, &dt)| Event64 {
             t_us: 1_700_000_000_000_000 + dt,
             x: i as u16 * 3,
             y: 7,
@@ -93,7 +93,7 @@ fn evt3_writer_keeps_the_sensor_size_and_handles_long_gaps() {
 }
 
 /// Events for the EVT 2.x streams: 3 time groups with vectors and single pixels.
-fn spec_events() -> (Vec<u64>, Vec<HostEvent>) {
+fn spec_events() -> (Vec<u64>, Vec<Event64>) {
     let t0 = 123_456_789u64;
     let t1 = t0 + 100; // next TIME_HIGH
     let mut words = vec![
@@ -106,26 +106,26 @@ fn spec_events() -> (Vec<u64>, Vec<HostEvent>) {
     ];
     words.push(0xE000_0000_0000_0000); // OTHERS
     let mut events = vec![
-        HostEvent {
+        Event64 {
             t_us: t0,
             x: 32,
             y: 5,
             on: true,
         },
-        HostEvent {
+        Event64 {
             t_us: t0,
             x: 35,
             y: 5,
             on: true,
         },
-        HostEvent {
+        Event64 {
             t_us: t0,
             x: 95,
             y: 6,
             on: false,
         },
     ];
-    events.extend((0..32).map(|x| HostEvent {
+    events.extend((0..32).map(|x| Event64 {
         t_us: t1,
         x,
         y: 479,
@@ -219,13 +219,13 @@ fn csv_with_and_without_header() {
     assert_eq!(
         a.events,
         vec![
-            HostEvent {
+            Event64 {
                 t_us: 10,
                 x: 1,
                 y: 2,
                 on: true
             },
-            HostEvent {
+            Event64 {
                 t_us: 11,
                 x: 3,
                 y: 4,

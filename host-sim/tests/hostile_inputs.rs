@@ -654,3 +654,215 @@ fn eval_refuses_truth_without_time_and_gyro_on_another_clock() {
     let o = run(args!["eval", "--yaw", yaw, "--gt", gt]);
     assert_ok(&o);
 }
+
+#[test]
+fn eval_streams_its_inputs_and_still_refuses_faults_found_late() {
+    // The ground truth and the gyro are read only as far as the estimate has come, then to
+    // their end: a fault after the estimate's span is found last, and still ends the run with
+    // one error line, nothing printed and no figure written.
+    let d = tmp();
+    let yaw = d.path().join("yaw.csv");
+    let mut s = String::from("t_s,yaw_rate_rad_s\n");
+    for k in 0..=1000 {
+        s.push_str(&format!("{:.3},{:.4}\n", 1.0 + f64::from(k) * 1e-3, 0.1));
+    }
+    std::fs::write(&yaw, &s).unwrap();
+    let gt = d.path().join("gt.csv");
+    let gt_rows = |bad: &dyn Fn(u32) -> Option<String>| {
+        let mut s = String::from("t_s,wx,wy,wz\n");
+        for k in 0..30_000u32 {
+            let row = bad(k).unwrap_or_else(|| format!("{:.4},0,0.1,0", f64::from(k) * 1e-3));
+            s.push_str(&row);
+            s.push('\n');
+        }
+        s
+    };
+    let imu = d.path().join("imu.txt");
+    let imu_rows = |bad: &dyn Fn(u32) -> Option<String>| {
+        let mut s = String::new();
+        for k in 0..6000u32 {
+            let row =
+                bad(k).unwrap_or_else(|| format!("{:.3} 0 0 9.8 0 0.1 0", f64::from(k) * 5e-3));
+            s.push_str(&row);
+            s.push('\n');
+        }
+        s
+    };
+    let png = d.path().join("e.png");
+    let cases: [(&str, String, String, &[&str]); 4] = [
+        (
+            "truth back at 29 s",
+            gt_rows(&|k| (k == 29_000).then(|| "28.5,0,0.1,0".into())),
+            imu_rows(&|_| None),
+            &["gt.csv", "ground-truth time goes backwards at sample 29001"],
+        ),
+        (
+            "truth truncated",
+            gt_rows(&|_| None) + "30.5,0",
+            imu_rows(&|_| None),
+            &["gt.csv", "truncated line 30002"],
+        ),
+        (
+            "gyro malformed at 25 s",
+            gt_rows(&|_| None),
+            imu_rows(&|k| (k == 5000).then(|| "25.0 0 0".into())),
+            &["imu.txt", "malformed line 5001"],
+        ),
+        (
+            "gyro back at 29 s",
+            gt_rows(&|_| None),
+            imu_rows(&|k| (k == 5800).then(|| "1.0 0 0 9.8 0 0.1 0".into())),
+            &["imu.txt", "gyro time goes backwards at sample 5801"],
+        ),
+    ];
+    for (what, gt_text, imu_text, needles) in cases {
+        std::fs::write(&gt, gt_text).unwrap();
+        std::fs::write(&imu, imu_text).unwrap();
+        let o = run(args![
+            "eval", "--yaw", yaw, "--gt", gt, "--imu", imu, "--plot", png
+        ]);
+        assert_fails(&o, needles);
+        assert!(o.stdout.is_empty(), "{what}: printed figures");
+        assert!(!png.exists(), "{what}: left the figure");
+        assert!(leftovers(d.path()).is_empty(), "{what}");
+        // Not prefixed by the evaluation's label: the error is the file's.
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!err.contains(" vs "), "{what}: {err}");
+    }
+    std::fs::write(&gt, gt_rows(&|_| None)).unwrap();
+    std::fs::write(&imu, imu_rows(&|_| None)).unwrap();
+    let o = run(args![
+        "eval", "--yaw", yaw, "--gt", gt, "--imu", imu, "--plot", png
+    ]);
+    assert_ok(&o);
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+}
+
+/// Names in `dir`, sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn sweep_demo_and_eval_leave_nothing_when_the_plot_fails() {
+    let d = tmp();
+    let csv = d.path().join("s.csv");
+    // sweep: a plot into a folder that does not exist, a plot path that is a folder, a plot
+    // path equal to the CSV's; the CSV is never left behind, nor any temporary file.
+    let missing_dir = d.path().join("no_such_dir").join("s.png");
+    assert_fails(
+        &run(args!["sweep", "--out", csv, "--plot", missing_dir]),
+        &["s.png"],
+    );
+    assert!(!csv.exists(), "the CSV was left behind");
+    let folder = d.path().join("plot.png");
+    std::fs::create_dir(&folder).unwrap();
+    assert_fails(
+        &run(args!["sweep", "--out", csv, "--plot", folder]),
+        &["plot.png"],
+    );
+    assert!(!csv.exists(), "the CSV was left behind");
+    assert_fails(
+        &run(args!["sweep", "--out", csv, "--plot", csv]),
+        &["s.csv"],
+    );
+    assert!(!csv.exists());
+    assert_eq!(names(d.path()), ["plot.png"]);
+    // Both appear when both can be written.
+    let png = d.path().join("s.png");
+    assert_ok(&run(args!["sweep", "--out", csv, "--plot", png]));
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+    assert!(std::fs::read_to_string(&csv)
+        .unwrap()
+        .starts_with("dt_ms,spikes,first_spike_ms\n"));
+    assert_eq!(names(d.path()), ["plot.png", "s.csv", "s.png"]);
+
+    // demo: its figure's name taken by a folder. None of the scene files, yaw.csv or the
+    // staging folder is left; the one error line is the last of stderr (after the progress
+    // line).
+    let out = d.path().join("demo");
+    std::fs::create_dir_all(out.join("eval.png")).unwrap();
+    let o = run(args!["demo", "--out", out, "--duration", "0.3"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error: ")).collect();
+    assert_eq!(errors.len(), 1, "{err}");
+    assert_eq!(err.lines().last(), Some(errors[0]));
+    assert!(errors[0].contains("eval.png"), "{err}");
+    assert_eq!(names(&out), ["eval.png"]);
+    // A demo into a new folder: every output, nothing else.
+    let out = d.path().join("demo2");
+    let o = run(args!["demo", "--out", out, "--duration", "0.3"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        names(&out),
+        [
+            "eval.png",
+            "events.txt",
+            "gt.csv",
+            "imu.txt",
+            "meta.json",
+            "yaw.csv"
+        ]
+    );
+
+    // eval: a figure that cannot be written prints no figures and leaves no file.
+    let yaw = out.join("yaw.csv");
+    let gt = out.join("gt.csv");
+    let before = names(&out);
+    let bad = out.join("no_such_dir").join("e.png");
+    let o = run(args!["eval", "--yaw", yaw, "--gt", gt, "--plot", bad]);
+    assert_fails(&o, &["e.png"]);
+    assert!(
+        o.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    assert_eq!(names(&out), before);
+}
+
+#[test]
+fn eval_reads_the_estimate_line_by_line() {
+    let d = tmp();
+    let gt = d.path().join("gt.csv");
+    std::fs::write(&gt, "t_s,yaw_rate\n0,0.1\n1,0.2\n2,0.3\n").unwrap();
+    let yaw = d.path().join("yaw.csv");
+    // A row without a line break longer than any estimate row: refused, not read whole.
+    let mut s = String::from("t_s,yaw_rate_rad_s\n0,0.1\n");
+    s.push_str(&"1".repeat(3 << 20));
+    std::fs::write(&yaw, &s).unwrap();
+    assert_fails(
+        &run(args!["eval", "--yaw", yaw, "--gt", gt]),
+        &["yaw.csv", "line 3", "longer than"],
+    );
+    // Bytes that are not text, a time going back, a time that is not finite.
+    std::fs::write(&yaw, b"t_s,yaw_rate_rad_s\n0,0.1\n1,\xff\xfe\n").unwrap();
+    assert_fails(&run(args!["eval", "--yaw", yaw, "--gt", gt]), &["line 3"]);
+    std::fs::write(&yaw, "t_s,yaw_rate_rad_s\n0,0.1\n2,0.1\n1,0.1\n").unwrap();
+    assert_fails(
+        &run(args!["eval", "--yaw", yaw, "--gt", gt]),
+        &["line 4: time goes backwards"],
+    );
+    std::fs::write(&yaw, "t_s,yaw_rate_rad_s\n0,0.1\ninf,0.1\n").unwrap();
+    assert_fails(
+        &run(args!["eval", "--yaw", yaw, "--gt", gt]),
+        &["line 3: time is not finite"],
+    );
+    // Rows without a value are skipped and counted; CRLF and blank lines are fine.
+    std::fs::write(
+        &yaw,
+        "t_s,yaw_rate_rad_s\r\n0,0.1\r\n\r\n0.5,nan\r\n1,0.2\r\n1.5,\r\n2,0.3\r\n",
+    )
+    .unwrap();
+    let o = run(args!["eval", "--yaw", yaw, "--gt", gt]);
+    assert_ok(&o);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("2 estimate rows without a value"), "{text}");
+    assert!(text.contains("RMSE                 0.0000 rad/s"), "{text}");
+}

@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use host_sim::formats::{self, Format, GyroSample, HostEvent};
+use host_sim::formats::{self, Event64, Format, GyroSample};
 use proptest::prelude::*;
 
 const EVENTS: &str = "davis/left/events";
@@ -172,7 +172,7 @@ fn ok_or_one_line<T>(r: anyhow::Result<T>, path: &Path) -> Option<T> {
 /// The event of a row `[x, y, t_s, p]` as the format defines it: pixel coordinates are whole
 /// numbers in 0..65536, the time a finite non-negative number of seconds (rounded to the µs),
 /// p > 0 is ON, and -1 or 0 is OFF.
-fn event_of(row: &[f64]) -> Option<HostEvent> {
+fn event_of(row: &[f64]) -> Option<Event64> {
     let &[x, y, t, p] = row else { return None };
     let pixel = |v: f64| ((0.0..65536.0).contains(&v) && v.fract() == 0.0).then_some(v as u16);
     let us = (t * 1e6).round();
@@ -184,7 +184,7 @@ fn event_of(row: &[f64]) -> Option<HostEvent> {
     } else {
         return None;
     };
-    Some(HostEvent {
+    Some(Event64 {
         t_us,
         x: pixel(x)?,
         y: pixel(y)?,
@@ -313,9 +313,9 @@ proptest! {
 
         let rec = formats::read(&path, None).unwrap();
         prop_assert_eq!(rec.format, Format::MvsecHdf5);
-        let expect: Vec<HostEvent> = events
+        let expect: Vec<Event64> = events
             .iter()
-            .map(|&(x, y, t_us, p)| HostEvent { t_us, x, y, on: p > 0 })
+            .map(|&(x, y, t_us, p)| Event64 { t_us, x, y, on: p > 0 })
             .collect();
         prop_assert_eq!(&rec.events, &expect);
         let gyro: Option<Vec<GyroSample>> = imu.as_ref().map(|imu| {
@@ -347,12 +347,12 @@ proptest! {
             assert_error(r, &path, "cannot read `davis/left/events`");
         } else {
             let values = values.unwrap();
-            let rows: Vec<Option<HostEvent>> = values.chunks(4).map(event_of).collect();
+            let rows: Vec<Option<Event64>> = values.chunks(4).map(event_of).collect();
             match rows.iter().position(Option::is_none) {
                 Some(i) => assert_error(r, &path, &format!("malformed event {i} ")),
                 None => {
                     let rec = r.unwrap();
-                    let expect: Vec<HostEvent> = rows.into_iter().flatten().collect();
+                    let expect: Vec<Event64> = rows.into_iter().flatten().collect();
                     prop_assert_eq!(rec.events, expect);
                     prop_assert_eq!(rec.gyro, None);
                 }
@@ -482,7 +482,7 @@ fn declared_but_unstored_rows_are_refused() {
     let rec = formats::read(&path, Some(Format::MvsecHdf5)).unwrap();
     assert_eq!(rec.events.len(), 10);
     assert!(rec.events.iter().all(|e| *e
-        == HostEvent {
+        == Event64 {
             t_us: 0,
             x: 0,
             y: 0,

@@ -8,16 +8,16 @@
 //! The bounds are what the readout reaches today with a margin (README: "Flight regimes"); the
 //! issue's targets are tighter and not all met: see the README for where it falls short.
 
-use host_sim::commands::run::{run_pipeline, Args};
 use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
 use host_sim::formats::{self, Format, Recording};
+use host_sim::pipeline::{run_pipeline, RunOptions};
 use host_sim::synth::regime::{preset, Regime};
 use host_sim::synth::{generate, Preset};
 use host_sim::testdata::shared_data;
 
 /// Flag of a sample without rotation evidence.
-const NO_EVIDENCE: u8 = core_nostd::readout::flags::NO_EVIDENCE;
+const NO_EVIDENCE: u8 = core_nostd::flags::NO_EVIDENCE;
 
 /// What one scene gave.
 struct Figures {
@@ -47,7 +47,7 @@ fn scene(regime: Regime, seed: u64, duration_s: f64) -> Figures {
         gyro: None,
         format: Format::Csv,
     };
-    let out = run_pipeline(&Args::new("scene".into(), "unused.csv".into()), &rec).expect("run");
+    let out = run_pipeline(&RunOptions::default(), &rec).expect("run");
     let est = Series::from_pairs(
         &out.samples
             .iter()
@@ -164,9 +164,9 @@ fn real_static_camera_with_a_moving_object() {
     };
     let input = dir.join("davis346_imu.aedat4");
     let rec = formats::read(&input, None).expect("read");
-    let args = Args {
+    let args = RunOptions {
         focal_px: Some(226.0),
-        ..Args::new(input, "unused.csv".into())
+        ..RunOptions::default()
     };
     let out = run_pipeline(&args, &rec).expect("run");
     let n = out.samples.len().max(1) as f64;

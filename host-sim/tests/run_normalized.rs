@@ -1,9 +1,9 @@
 //! The paper's normalized readout: the fixed-point network with its spikes follows the f64
 //! oracle network (the paper's method) on a small generated scene.
 
-use host_sim::commands::run::{run_pipeline, Args, Model, ReadoutKind};
 use host_sim::eval::metrics::pearson;
 use host_sim::formats::{self, Format, Recording};
+use host_sim::pipeline::{run_pipeline, Model, ReadoutKind, RunOptions};
 use host_sim::synth::{self, Intrinsics, MotionSpec, SynthConfig};
 
 #[test]
@@ -31,10 +31,10 @@ fn fixed_normalized_readout_follows_the_float_oracle_network() {
         gyro: None,
         format: Format::Csv,
     };
-    let args = |model| Args {
+    let args = |model| RunOptions {
         readout: ReadoutKind::Normalized,
         model,
-        ..Args::new("synthetic".into(), "unused".into())
+        ..RunOptions::default()
     };
     let fixed = run_pipeline(&args(Model::Fixed), &rec).expect("fixed");
     let float = run_pipeline(&args(Model::Float), &rec).expect("float");

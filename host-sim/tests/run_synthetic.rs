@@ -4,15 +4,11 @@
 //! 23.4 / 13.6 / 18.8 %; the noise texture of dev01 decodes about 20 % low, see the README's
 //! figures), and the f64 oracle agrees.
 
-use host_sim::commands::run::{run_pipeline, Args, Model};
 use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
 use host_sim::formats;
+use host_sim::pipeline::{run_pipeline, Model, RunOptions};
 use host_sim::testdata::shared_data;
-
-fn args_for(input: std::path::PathBuf) -> Args {
-    Args::new(input, "unused.csv".into())
-}
 
 #[test]
 fn calibrated_yaw_rate_on_every_synthetic_sequence() {
@@ -34,7 +30,7 @@ fn calibrated_yaw_rate_on_every_synthetic_sequence() {
             .unwrap_or_default();
         let input = seq.join("events.raw");
         let rec = formats::read(&input, None).expect("read events");
-        let out = run_pipeline(&args_for(input), &rec).expect("run");
+        let out = run_pipeline(&RunOptions::default(), &rec).expect("run");
         let gt = formats::read_ground_truth(seq.join("gt.csv")).expect("gt");
         let est = Series::from_pairs(&out.samples.iter().map(|s| (s.0, s.1)).collect::<Vec<_>>());
         let t: Vec<f64> = gt.iter().map(|g| g.t_s).collect();
@@ -49,9 +45,9 @@ fn calibrated_yaw_rate_on_every_synthetic_sequence() {
         let peak = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let (corr, err) = (pearson(&e, &g), rmse(&e, &g) / peak);
         // The f64 oracle on the same events: the fixed-point pipeline follows it.
-        let float_args = Args {
+        let float_args = RunOptions {
             model: Model::Float,
-            ..args_for(seq.join("events.raw"))
+            ..RunOptions::default()
         };
         let float = run_pipeline(&float_args, &rec).expect("run float");
         let (a, b): (Vec<f64>, Vec<f64>) = out

@@ -1,8 +1,8 @@
-//! `cargo xtask fuzz [--seconds N] [TARGET ...]`: the libFuzzer targets in `host-sim/fuzz`
-//! (cargo-fuzz, nightly), each run for N seconds (default 10: the smoke run of `cargo xtask
-//! test`; use e.g. `--seconds 3600` for a long run). Prints the executions each target reached.
-//! Installs cargo-fuzz when missing; needs the nightly toolchain (`rustup toolchain install
-//! nightly` where it is not there).
+//! `cargo xtask fuzz [--seconds N] [TARGET ...]`: the libFuzzer targets (cargo-fuzz, nightly)
+//! of the core (`core-nostd/fuzz`) and of the host tool (`host-sim/fuzz`), each run for N
+//! seconds (default 10: the smoke run of `cargo xtask test`; use e.g. `--seconds 3600` for a
+//! long run). Prints the executions each target reached. Installs cargo-fuzz when missing;
+//! needs the nightly toolchain (`rustup toolchain install nightly` where it is not there).
 
 use std::process::Command;
 
@@ -10,16 +10,32 @@ use anyhow::{bail, Context, Result};
 
 use crate::{cargo, root, run};
 
-/// The targets (`host-sim/fuzz/fuzz_targets/*.rs`).
-pub const TARGETS: &[&str] = &[
-    "evt_decoders",
-    "aer_receiver",
-    "pipeline_events",
-    "host_formats",
-    "mvsec_hdf5",
-    "cli_numbers",
-    "eval_inputs",
-];
+/// The cargo-fuzz crates. Their targets are the files `<dir>/fuzz_targets/*.rs` (each also a
+/// `[[bin]]` of `<dir>/Cargo.toml`).
+const FUZZ_DIRS: &[&str] = &["core-nostd/fuzz", "host-sim/fuzz"];
+
+/// A fuzz target and the cargo-fuzz crate it belongs to.
+struct Target {
+    dir: &'static str,
+    name: String,
+}
+
+/// Every target of every fuzz crate, in directory then name order.
+fn targets() -> Result<Vec<Target>> {
+    let mut all = Vec::new();
+    for &dir in FUZZ_DIRS {
+        let src = root().join(dir).join("fuzz_targets");
+        let mut names: Vec<String> = std::fs::read_dir(&src)
+            .with_context(|| format!("cannot list {}", src.display()))?
+            .filter_map(|e| Some(e.ok()?.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "rs"))
+            .filter_map(|p| Some(p.file_stem()?.to_str()?.to_string()))
+            .collect();
+        names.sort();
+        all.extend(names.into_iter().map(|name| Target { dir, name }));
+    }
+    Ok(all)
+}
 
 /// `cargo` of the nightly toolchain, whatever toolchain runs this xtask.
 fn nightly_cargo() -> Command {
@@ -62,42 +78,53 @@ fn ensure_tools() -> Result<()> {
     Ok(())
 }
 
-/// Runs the fuzz targets (all when `targets` is empty) for `seconds` each.
+/// Runs the fuzz targets (all when `args` names none) for `seconds` each.
 pub fn fuzz(args: &[String]) -> Result<()> {
+    let all = targets()?;
     let mut seconds = 10u32;
-    let mut targets: Vec<String> = Vec::new();
+    let mut chosen: Vec<&Target> = Vec::new();
     let mut it = args.iter();
     while let Some(a) = it.next() {
-        match a.as_str() {
-            "--seconds" => {
-                seconds = it
-                    .next()
-                    .and_then(|s| s.parse().ok())
-                    .context("--seconds takes a whole number")?;
-            }
-            t if TARGETS.contains(&t) => targets.push(t.to_string()),
-            other => bail!(
-                "unknown fuzz target or option `{other}` (targets: {})",
-                TARGETS.join(", ")
-            ),
+        if a == "--seconds" {
+            seconds = it
+                .next()
+                .and_then(|s| s.parse().ok())
+                .context("--seconds takes a whole number")?;
+        } else if let Some(t) = all.iter().find(|t| t.name == *a) {
+            chosen.push(t);
+        } else {
+            let names: Vec<&str> = all.iter().map(|t| t.name.as_str()).collect();
+            bail!(
+                "unknown fuzz target or option `{a}` (targets: {})",
+                names.join(", ")
+            );
         }
     }
-    if targets.is_empty() {
-        targets = TARGETS.iter().map(|t| t.to_string()).collect();
+    if chosen.is_empty() {
+        chosen = all.iter().collect();
     }
     ensure_tools()?;
-    let mut c = nightly_cargo();
-    c.args(["fuzz", "build", "--fuzz-dir", "host-sim/fuzz", "-O"]);
-    run("cargo fuzz build (nightly, libFuzzer + ASan)", c)?;
-    for t in &targets {
+    for &dir in FUZZ_DIRS {
+        if !chosen.iter().any(|t| t.dir == dir) {
+            continue;
+        }
         let mut c = nightly_cargo();
-        c.args(["fuzz", "run", "--fuzz-dir", "host-sim/fuzz", "-O", t, "--"])
+        c.args(["fuzz", "build", "--fuzz-dir", dir, "-O"]);
+        run(
+            &format!("cargo fuzz build {dir} (nightly, libFuzzer + ASan)"),
+            c,
+        )?;
+    }
+    for t in &chosen {
+        let name = &t.name;
+        let mut c = nightly_cargo();
+        c.args(["fuzz", "run", "--fuzz-dir", t.dir, "-O", name, "--"])
             .arg(format!("-max_total_time={seconds}"))
             .arg("-rss_limit_mb=2048");
-        eprintln!("xtask: fuzz {t} for {seconds} s");
+        eprintln!("xtask: fuzz {name} for {seconds} s");
         let out = c
             .output()
-            .with_context(|| format!("cannot start cargo fuzz run {t}"))?;
+            .with_context(|| format!("cannot start cargo fuzz run {name}"))?;
         let err = String::from_utf8_lossy(&out.stderr);
         let done = err
             .lines()
@@ -110,9 +137,33 @@ pub fn fuzz(args: &[String]) -> Result<()> {
             for l in tail.iter().rev() {
                 eprintln!("{l}");
             }
-            bail!("fuzz target {t} found a crash (input saved under host-sim/fuzz/artifacts/{t})");
+            bail!(
+                "fuzz target {name} found a crash (input saved under {}/artifacts/{name})",
+                t.dir
+            );
         }
-        eprintln!("xtask: fuzz {t}: {done}, no crash");
+        eprintln!("xtask: fuzz {name}: {done}, no crash");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// cargo-fuzz builds the `[[bin]]`s of the manifest: every file under `fuzz_targets/` must
+    /// be one, named after the file, or `cargo xtask fuzz` would ask for a target that does not
+    /// build.
+    #[test]
+    fn every_target_file_is_a_bin_of_its_crate() {
+        for t in targets().unwrap() {
+            let manifest = std::fs::read_to_string(root().join(t.dir).join("Cargo.toml")).unwrap();
+            let bin = format!("name = \"{0}\"\npath = \"fuzz_targets/{0}.rs\"", t.name);
+            assert!(
+                manifest.contains(&bin),
+                "{}/Cargo.toml lacks the [[bin]] `{bin}`",
+                t.dir
+            );
+        }
+    }
 }

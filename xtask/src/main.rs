@@ -1,16 +1,18 @@
 //! `cargo xtask <task>`: the one front door for project tasks.
 //!
-//! - `test`:  everything CI runs — system packages, fmt, clippy, every test, the Cortex-M builds.
+//! - `test`:  everything CI runs — system packages, fmt, clippy, docs, every test, the example,
+//!   the Cortex-M builds, the fuzz smoke runs.
 //! - `demo`:  the main job on a built-in default input.
 //! - `setup`: install what the other tasks need (system packages through apt when root).
 
-use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
 use anyhow::{bail, Context, Result};
 
 mod firmware;
 mod fuzz;
+
+pub use xtask::{cargo, root, run, TARGET};
 
 /// Debian packages the host tools need to build and run.
 const APT_PACKAGES: &[&str] = &[
@@ -23,9 +25,6 @@ const APT_PACKAGES: &[&str] = &[
 
 /// Seed of the property tests under `cargo xtask test` (see `test`).
 const PROPTEST_SEED: &str = "20261201";
-
-/// The Cortex-M target of the firmware and of the no_std core.
-pub const TARGET: &str = "thumbv7em-none-eabihf";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -61,7 +60,8 @@ fn print_help() {
     eprintln!(
         "usage: cargo xtask <task>\n\n\
          tasks:\n  \
-         test    fmt, clippy, every test, the Cortex-M builds (what CI runs)\n  \
+         test    fmt, clippy, docs, every test, the example, the Cortex-M builds, fuzz smoke\n          \
+         runs (what CI runs)\n  \
          demo    the main job on the built-in default input; results in out/\n  \
          regimes [--seed N]   the readout in every flight regime (car, drone, hover, objects,\n          \
          rotation): rendered, run and judged, plots in out/regimes/\n  \
@@ -72,30 +72,6 @@ fn print_help() {
          firmware-test   only the firmware part of `test` (every board, QEMU runs)\n  \
          fuzz [--seconds N] [TARGET..]      the libFuzzer targets (nightly), N s each (10)"
     );
-}
-
-pub fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| PathBuf::from("."))
-}
-
-pub fn cargo() -> Command {
-    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
-    c.current_dir(root());
-    c
-}
-
-pub fn run(what: &str, mut cmd: Command) -> Result<()> {
-    eprintln!("xtask: {what}");
-    let status = cmd
-        .status()
-        .with_context(|| format!("cannot start: {what}"))?;
-    if !status.success() {
-        bail!("failed: {what} ({status})");
-    }
-    Ok(())
 }
 
 /// Installs missing Debian packages when running as root; otherwise prints the exact command.
@@ -153,6 +129,20 @@ fn test() -> Result<()> {
         "warnings",
     ]);
     run("cargo clippy (workspace)", c)?;
+    // The API docs build without a warning (broken or ambiguous links): the workspace, where
+    // host-sim turns on the core's `oracle`, and the core alone, as a no_std user sees it.
+    for (what, args) in [
+        ("cargo doc (workspace)", &["--workspace"][..]),
+        (
+            "cargo doc (core-nostd, no features)",
+            &["-p", "core-nostd"][..],
+        ),
+    ] {
+        let mut c = cargo();
+        c.args(["doc", "--no-deps"]).args(args);
+        c.env("RUSTDOCFLAGS", "-D warnings");
+        run(what, c)?;
+    }
     // Release profile: the oracle comparisons and recordings are heavy in debug builds.
     // Overflow checks on, so that an arithmetic overflow anywhere fails the tests.
     let mut c = cargo();
@@ -163,17 +153,26 @@ fn test() -> Result<()> {
     // own draws new cases each run (that is how the oracle's ill-conditioned trains were found).
     c.env("PROPTEST_RNG_SEED", PROPTEST_SEED);
     run("cargo test --workspace --release", c)?;
-    firmware::ensure_target()?;
+    // The example that walks the whole chain (`cargo test` only builds it). The same profile
+    // settings as the tests, so that nothing is built again.
     let mut c = cargo();
     c.args([
-        "build",
+        "run",
+        "--release",
         "-p",
         "core-nostd",
-        "--no-default-features",
-        "--release",
-        "--target",
-        TARGET,
+        "--example",
+        "edge_sweep",
     ]);
+    c.env("CARGO_PROFILE_RELEASE_OVERFLOW_CHECKS", "true");
+    run(
+        "example edge_sweep (events -> network -> readout -> yaw)",
+        c,
+    )?;
+    firmware::ensure_target()?;
+    // The core as the firmware gets it (no features: no std, no oracle).
+    let mut c = cargo();
+    c.args(["build", "-p", "core-nostd", "--release", "--target", TARGET]);
     run("core-nostd for thumbv7em-none-eabihf", c)?;
     firmware::check()?;
     // A short smoke run of every fuzz target (the long run: `cargo xtask fuzz --seconds 3600`).
@@ -189,7 +188,7 @@ fn demo(_args: &[String]) -> Result<()> {
     let out = root().join("out/demo-firmware");
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let scene = out.join("scene");
-    let mut c = firmware::host_sim();
+    let mut c = xtask::host_sim();
     c.args(["synth", "--duration", "4", "--seed", "1", "--out"])
         .arg(&scene);
     run(
@@ -198,17 +197,11 @@ fn demo(_args: &[String]) -> Result<()> {
     )?;
     firmware::build(firmware::Board::Qemu)?;
     let yaw = out.join("yaw.csv");
-    let a = firmware::QemuArgs {
-        input: scene.join("events.txt"),
-        out: yaw.clone(),
-        rate_hz: 1000,
-        work: Some(out.join("qemu")),
-        ..Default::default()
-    };
+    let a = xtask::qemu::Qemu::new(scene.join("events.txt"), &yaw, out.join("qemu"));
     eprintln!("xtask: running the firmware in QEMU (mps2-an386, Cortex-M4F)");
-    let report = firmware::qemu_run(&a)?;
-    let summary = report.counters();
-    let mut c = firmware::host_sim();
+    let report = a.run()?;
+    let summary = report.summary.counters();
+    let mut c = xtask::host_sim();
     c.args(["eval", "--yaw"])
         .arg(&yaw)
         .arg("--gt")
@@ -246,7 +239,7 @@ fn regimes(args: &[String]) -> Result<()> {
         std::fs::create_dir_all(&dir)
             .with_context(|| format!("cannot create {}", dir.display()))?;
         let scene = dir.join("scene");
-        let mut c = firmware::host_sim();
+        let mut c = xtask::host_sim();
         c.args(["synth", "--regime", regime, "--duration", "4", "--seed"])
             .arg(seed.to_string())
             .arg("--out")
@@ -256,13 +249,13 @@ fn regimes(args: &[String]) -> Result<()> {
             c,
         )?;
         let yaw = dir.join("yaw.csv");
-        let mut c = firmware::host_sim();
+        let mut c = xtask::host_sim();
         c.arg("run")
             .arg(scene.join("events.txt"))
             .arg("--out")
             .arg(&yaw);
         run(&format!("host-sim run ({regime})"), c)?;
-        let mut c = firmware::host_sim();
+        let mut c = xtask::host_sim();
         c.args(["eval", "--yaw"])
             .arg(&yaw)
             .arg("--gt")
@@ -273,4 +266,37 @@ fn regimes(args: &[String]) -> Result<()> {
     }
     println!("xtask: regimes done: {}", out.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The `[workspace.lints.*]` tables of a manifest: their lines without comments and blanks.
+    fn workspace_lints(manifest: &str) -> Vec<&str> {
+        let mut inside = false;
+        let mut lines = Vec::new();
+        for l in manifest.lines().map(str::trim) {
+            if l.starts_with('[') {
+                inside = l.starts_with("[workspace.lints");
+            }
+            if inside && !l.is_empty() && !l.starts_with('#') {
+                lines.push(l);
+            }
+        }
+        lines
+    }
+
+    /// The firmware is its own workspace and cannot inherit the lint set: it keeps a copy.
+    #[test]
+    fn the_firmware_has_the_workspace_lints() {
+        let read = |p: &str| std::fs::read_to_string(root().join(p)).unwrap();
+        let (ws, fw) = (read("Cargo.toml"), read("firmware/Cargo.toml"));
+        assert!(!workspace_lints(&ws).is_empty());
+        assert_eq!(
+            workspace_lints(&fw),
+            workspace_lints(&ws),
+            "firmware/Cargo.toml's [workspace.lints] must equal the root Cargo.toml's"
+        );
+    }
 }

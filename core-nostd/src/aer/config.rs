@@ -1,11 +1,11 @@
-//! The configuration frame (AER frame kind 3): the camera and the network a receiver should
-//! run, sent in the AER stream so that another camera, lens or layout needs no rebuild.
+//! The configuration frame (AER frame kind 3): the wire form of [`Settings`], sent in the AER
+//! stream so that another camera, lens or layout needs no rebuild.
 //!
 //! ```text
-//! payload (little-endian), format version 1, 36 bytes
+//! payload (little-endian), format version 1 (36 bytes) or 2 (40 bytes)
 //! offset size field
-//!      0    1 format version (1); a receiver refuses other versions
-//!      1    1 readout: 0 = calibrated (rad/s); other values are refused
+//!      0    1 format version (1 or 2); a receiver refuses other versions
+//!      1    1 readout: 0 = calibrated (rad/s), 1 = normalized (version 2 only)
 //!      2    1 layout: 0 = dense over the whole sensor, 1 = the paper's boxes, 2 = dense window
 //!      3    1 reserved (0)
 //!      4    2 sensor width (px, 1..=2048)
@@ -20,61 +20,23 @@
 //!     28    2 window width (> stride)
 //!     30    2 window height (>= 1)
 //!     32    4 output period (µs, >= 1; 1000 = 1 kHz)
+//!     36    4 readout time constant tau_A (µs; 0 = the readout's default) (version 2 only)
 //! ```
 //!
-//! The frame's CRC-32 (and header CRC-16) protect it like any frame; a later format version may
-//! append fields (payloads up to 64 bytes are framed), which version-1 receivers refuse.
+//! Settings that version 1 can say (calibrated readout, default `tau_A`) are written as
+//! version 1, so streams of earlier builds and of this one are the same bytes; others as
+//! version 2. The frame's CRC-32 (and header CRC-16) protect it like any frame.
 
 use super::frame::{encode_frame, EncodeFrameError, Kind};
 use crate::fixed::types::U16F16;
+use crate::settings::{LayoutChoice, ReadoutChoice, Settings, SettingsError};
 
-/// The configuration format this code writes and reads.
-pub const CONFIG_VERSION: u8 = 1;
+/// The newest configuration format this code writes and reads.
+pub const CONFIG_VERSION: u8 = 2;
 /// Payload bytes of format version 1.
-pub const CONFIG_BYTES: usize = 36;
-/// Largest sensor side the AER format carries (11-bit coordinates).
-const MAX_SIDE: u16 = 2048;
-
-/// Which network the receiver runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LayoutChoice {
-    /// Dense over the whole sensor.
-    Dense,
-    /// The paper's two 20 x 20 boxes.
-    PaperBoxes,
-    /// Dense over a window of the sensor.
-    Window {
-        /// First column.
-        x0: u16,
-        /// First row.
-        y0: u16,
-        /// Columns.
-        w: u16,
-        /// Rows.
-        h: u16,
-    },
-}
-
-/// What a configuration frame says.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct StreamConfig {
-    /// Sensor width in px.
-    pub width: u16,
-    /// Sensor height in px.
-    pub height: u16,
-    /// Focal length in px.
-    pub focal_px: U16F16,
-    /// Principal point column in px.
-    pub cx: U16F16,
-    /// Principal point row in px.
-    pub cy: U16F16,
-    /// The network.
-    pub layout: LayoutChoice,
-    /// FAC-to-TRG distance in px.
-    pub stride: u16,
-    /// Output period in µs.
-    pub period_us: u32,
-}
+pub const CONFIG_BYTES_V1: usize = 36;
+/// Payload bytes of format version 2 (the largest payload).
+pub const CONFIG_BYTES: usize = 40;
 
 /// Why a configuration payload was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,8 +49,8 @@ pub enum ConfigError {
     Readout(u8),
     /// An unknown layout code.
     Layout(u8),
-    /// A value out of range (sizes, stride, focal length, window, period).
-    Value,
+    /// Values that cannot run (sizes, stride, focal length, window, period, `tau_A`).
+    Value(SettingsError),
 }
 
 fn le16(b: &[u8], at: usize) -> u16 {
@@ -105,44 +67,29 @@ fn le32(b: &[u8], at: usize) -> u32 {
     }
 }
 
-impl StreamConfig {
-    /// Checks the values (see the module docs).
-    ///
-    /// # Errors
-    /// [`ConfigError::Value`] when a value is out of range.
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        let side_ok = |s: u16| (1..=MAX_SIDE).contains(&s);
-        let mut ok = side_ok(self.width)
-            && side_ok(self.height)
-            && self.stride >= 1
-            && self.stride < self.width
-            && self.focal_px > U16F16::ZERO
-            && self.period_us >= 1;
-        if let LayoutChoice::Window { x0, y0, w, h } = self.layout {
-            ok &= w > self.stride
-                && h >= 1
-                && u32::from(x0) + u32::from(w) <= u32::from(self.width)
-                && u32::from(y0) + u32::from(h) <= u32::from(self.height);
-        }
-        if ok {
-            Ok(())
-        } else {
-            Err(ConfigError::Value)
-        }
-    }
-
-    /// The version-1 payload.
+impl Settings {
+    /// The payload (version 1 when it can say these settings, else version 2) and its length.
     #[must_use]
-    pub fn payload(&self) -> [u8; CONFIG_BYTES] {
+    pub fn payload(&self) -> ([u8; CONFIG_BYTES], usize) {
         let (code, (x0, y0, w, h)) = match self.layout {
             LayoutChoice::Dense => (0u8, (0, 0, 0, 0)),
             LayoutChoice::PaperBoxes => (1, (0, 0, 0, 0)),
             LayoutChoice::Window { x0, y0, w, h } => (2, (x0, y0, w, h)),
         };
+        let readout = match self.readout {
+            ReadoutChoice::Calibrated => 0u8,
+            ReadoutChoice::Normalized => 1,
+        };
+        let tau = self.tau_a_us.unwrap_or(0);
+        let (version, len) = if readout == 0 && tau == 0 {
+            (1u8, CONFIG_BYTES_V1)
+        } else {
+            (2, CONFIG_BYTES)
+        };
         let mut p = [0u8; CONFIG_BYTES];
-        let fields: [(usize, &[u8]); 14] = [
-            (0, &[CONFIG_VERSION]),
-            (1, &[0]),
+        let fields: [(usize, &[u8]); 15] = [
+            (0, &[version]),
+            (1, &[readout]),
             (2, &[code]),
             (4, &self.width.to_le_bytes()),
             (6, &self.height.to_le_bytes()),
@@ -155,31 +102,37 @@ impl StreamConfig {
             (28, &w.to_le_bytes()),
             (30, &h.to_le_bytes()),
             (32, &self.period_us.to_le_bytes()),
+            (36, &tau.to_le_bytes()),
         ];
         for (at, bytes) in fields {
-            if let Some(dst) = p.get_mut(at..at + bytes.len()) {
-                dst.copy_from_slice(bytes);
+            if at < len {
+                if let Some(dst) = p.get_mut(at..at + bytes.len()) {
+                    dst.copy_from_slice(bytes);
+                }
             }
         }
-        p
+        (p, len)
     }
 
     /// Reads and checks a configuration payload.
     ///
     /// # Errors
-    /// An unknown version, readout or layout, a short payload, or values out of range.
+    /// An unknown version, readout or layout, a short payload, or values that cannot run.
     pub fn parse(p: &[u8]) -> Result<Self, ConfigError> {
         let version = p.first().copied().unwrap_or(0);
-        if version != CONFIG_VERSION {
-            return Err(ConfigError::Version(version));
-        }
-        if p.len() < CONFIG_BYTES {
+        let len = match version {
+            1 => CONFIG_BYTES_V1,
+            2 => CONFIG_BYTES,
+            other => return Err(ConfigError::Version(other)),
+        };
+        if p.len() < len {
             return Err(ConfigError::Length(p.len()));
         }
-        let readout = p.get(1).copied().unwrap_or(0);
-        if readout != 0 {
-            return Err(ConfigError::Readout(readout));
-        }
+        let readout = match (p.get(1).copied().unwrap_or(0), version) {
+            (0, _) => ReadoutChoice::Calibrated,
+            (1, 2) => ReadoutChoice::Normalized,
+            (other, _) => return Err(ConfigError::Readout(other)),
+        };
         let layout = match p.get(2).copied().unwrap_or(0) {
             0 => LayoutChoice::Dense,
             1 => LayoutChoice::PaperBoxes,
@@ -191,7 +144,8 @@ impl StreamConfig {
             },
             other => return Err(ConfigError::Layout(other)),
         };
-        let cfg = Self {
+        let tau = if version >= 2 { le32(p, 36) } else { 0 };
+        let settings = Self {
             width: le16(p, 4),
             height: le16(p, 6),
             stride: le16(p, 8),
@@ -200,12 +154,14 @@ impl StreamConfig {
             cy: U16F16::from_bits(le32(p, 20)),
             layout,
             period_us: le32(p, 32),
+            readout,
+            tau_a_us: (tau != 0).then_some(tau),
         };
-        cfg.validate()?;
-        Ok(cfg)
+        settings.validate().map_err(ConfigError::Value)?;
+        Ok(settings)
     }
 
-    /// Writes the configuration as a whole AER frame (kind 3) into `out`; returns its length.
+    /// Writes the settings as a whole AER frame (kind 3) into `out`; returns its length.
     ///
     /// # Errors
     /// When `out` is too short.
@@ -215,6 +171,13 @@ impl StreamConfig {
         seq: u16,
         out: &mut [u8],
     ) -> Result<usize, EncodeFrameError> {
-        encode_frame(Kind::Config, frame_flags, seq, &self.payload(), out)
+        let (payload, len) = self.payload();
+        encode_frame(
+            Kind::Config,
+            frame_flags,
+            seq,
+            payload.get(..len).unwrap_or(&payload),
+            out,
+        )
     }
 }

@@ -4,7 +4,7 @@
 //! offset  size  field
 //!      0     2  sync 0x59 0xC3
 //!      2     1  sequence counter (u8, +1 per frame, wraps)
-//!      3     1  status flags (see [`flags`])
+//!      3     1  status flags (see [`crate::flags`])
 //!      4     4  t: u32 µs (wrapping), on the event clock: the sample's time
 //!      8     4  yaw rate: i32 LE, I16F16 rad/s (1/65536 rad/s per LSB, ±32768 rad/s);
 //!               positive = the camera turns right (clockwise seen from above)
@@ -23,34 +23,12 @@ pub const SYNC: [u8; 2] = [0x59, 0xC3];
 /// Bytes per yaw frame.
 pub const FRAME_BYTES: usize = 14;
 
-/// Status flags. Bits 0..=3 have the values of [`crate::readout::flags`] (the pipeline sets
-/// STALE and NO_EVIDENCE; the firmware sets OVERFLOW and DECODER_ERRORS); bits 4..=5 are the
-/// firmware's transport; 6..=7 are reserved (0). Flags raised by the firmware are sticky until
-/// the next yaw frame: they say that something happened since the previous one.
-pub mod flags {
-    /// No event for more than 100 ms before the sample's time: the value says nothing about now.
-    pub const STALE: u8 = 1 << 0;
-    /// The readout's evidence gate did not pass: the value is 0 for lack of evidence.
-    pub const NO_EVIDENCE: u8 = 1 << 1;
-    /// Input was lost to overload: whole frames dropped because processing fell behind, the
-    /// sender reported lost events (SOURCE_OVERFLOW), or yaw frames were dropped on output.
-    pub const OVERFLOW: u8 = 1 << 2;
-    /// Payload decoder errors (EVT 3.0 words of undefined types).
-    pub const DECODER_ERRORS: u8 = 1 << 3;
-    /// Corrupted input: frames rejected (CRC, header), missing from the sequence, or bytes
-    /// lost by the receiver (DMA overrun).
-    pub const INPUT_ERRORS: u8 = 1 << 4;
-    /// The sample's time was extrapolated with the MCU clock (no events were arriving), not
-    /// taken from event time.
-    pub const CLOCK: u8 = 1 << 5;
-}
-
 /// One yaw output sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct YawFrame {
     /// Sequence counter.
     pub seq: u8,
-    /// Status flags ([`flags`]).
+    /// Status flags ([`crate::flags`]).
     pub flags: u8,
     /// Sample time, µs on the event clock (wrapping).
     pub t_us: u32,

@@ -34,7 +34,8 @@
 use fixed::types::{I16F16, U16F16};
 
 use super::field::{Field, FieldEstimate, FieldGeometry, FieldSettings, Population, COL_BANDS};
-use super::{flags, Readout};
+use super::Readout;
+use crate::flags;
 use crate::layout::Layout;
 use crate::log2::log2_q16;
 use crate::network::{NetSink, Trigger};
@@ -118,14 +119,6 @@ impl Calibration {
             tau_a_us: 10_000,
             period_us: 1_000,
             field: FieldSettings::DEFAULT,
-        }
-    }
-
-    /// Defaults for a layout of `units` units: `tau_A` from [`default_tau_a_us`].
-    pub fn for_units(focal_px: U16F16, cx: U16F16, cy: U16F16, units: usize) -> Self {
-        Self {
-            tau_a_us: default_tau_a_us(units),
-            ..Self::new(focal_px, cx, cy)
         }
     }
 }

@@ -13,18 +13,6 @@ use fixed::types::I16F16;
 
 use crate::network::NetSink;
 
-/// Status bits of a yaw sample.
-pub mod flags {
-    /// No event for more than the stale limit (100 ms): the value says nothing about now.
-    pub const STALE: u8 = 1 << 0;
-    /// The evidence did not pass the readout's gate: the value is 0 for lack of evidence.
-    pub const NO_EVIDENCE: u8 = 1 << 1;
-    /// Input was lost (frames dropped on overload); set by the firmware.
-    pub const OVERLOAD: u8 = 1 << 2;
-    /// The input decoder saw corrupted data; set by the firmware.
-    pub const DECODER_ERRORS: u8 = 1 << 3;
-}
-
 /// One output sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct YawSample {
@@ -32,7 +20,7 @@ pub struct YawSample {
     pub t_us: u32,
     /// Yaw rate in rad/s (positive = turning right), or the normalized readout's raw value.
     pub yaw_rate: I16F16,
-    /// See [`flags`].
+    /// See [`crate::flags`].
     pub flags: u8,
 }
 

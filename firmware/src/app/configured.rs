@@ -1,5 +1,5 @@
-//! Runs the network a [`StreamConfig`] describes, and moves to another when the AER stream
-//! brings a different, valid configuration frame (`core_nostd::aer::config`).
+//! Runs the pipeline a [`Settings`] describes, and moves to another when the AER stream brings
+//! different, valid settings in a configuration frame (`core_nostd::aer::config`).
 //!
 //! A board starts from its build-time defaults (or, in QEMU, its command line) and loops:
 //! [`run`] returns [`Exit::Reconfigure`] with the new configuration, the board runs that. The
@@ -8,11 +8,10 @@
 //! than the board has is refused and counted (`Stats::configs_refused`); the running network
 //! goes on.
 
-use core_nostd::aer::config::{LayoutChoice, StreamConfig};
-use core_nostd::layout::{Dense, Layout, PaperBoxes};
+use core_nostd::network::{Cell, NetState};
+use core_nostd::settings::{ReadoutChoice, Settings};
 use core_nostd::unit::Kernel;
 
-use super::process::{self, Cell, ProcessConfig};
 use super::processing::{self, Clock};
 use super::{CostMeter, YawSink};
 
@@ -21,18 +20,18 @@ pub enum Exit {
     /// The stream ended (replays).
     End,
     /// A different configuration arrived; run it next.
-    Reconfigure(StreamConfig),
+    Reconfigure(Settings),
 }
 
-/// Why a configuration cannot run.
+/// Why settings cannot run.
 #[derive(Clone, Copy, Debug, defmt::Format)]
 pub enum Refused {
-    /// The layout does not fit the sensor (or its stride).
+    /// The layout does not fit the sensor (or its stride), or a value is out of range.
     Layout,
     /// The layout needs more cells than the board has.
     Cells(usize),
-    /// The network could not be built over the cells.
-    Network,
+    /// The readout needs memory the board does not give it (the spiking units).
+    Readout,
 }
 
 /// The board's memory for network cells: a region used by nothing else, handed out (and
@@ -72,77 +71,40 @@ impl CellStore {
     }
 }
 
-/// The dense layout of a configuration (whole sensor or window), if it fits.
-fn dense(cfg: &StreamConfig) -> Option<Dense> {
-    let (x0, y0, w, h) = match cfg.layout {
-        LayoutChoice::Window { x0, y0, w, h } => (x0, y0, w, h),
-        _ => (0, 0, cfg.width, cfg.height),
-    };
-    Dense::window(cfg.width, cfg.height, x0, y0, w, h, cfg.stride)
-}
-
-/// The paper's boxes on the configuration's sensor (the placement `host-sim run` uses).
-fn boxes(cfg: &StreamConfig) -> Option<PaperBoxes> {
-    PaperBoxes::with_stride(cfg.width, cfg.height, cfg.stride, PaperBoxes::DEFAULT_SEED)
-}
-
-/// Cells the configuration's network needs; `None` when its layout does not fit.
-pub fn cells_needed(cfg: &StreamConfig) -> Option<usize> {
-    match cfg.layout {
-        LayoutChoice::PaperBoxes => boxes(cfg).map(|l| l.cell_count()),
-        _ => dense(cfg).map(|l| l.cell_count()),
+/// Cells the settings' pipeline needs, if the board can run it at all (a layout that fits, a
+/// readout that needs cells only).
+fn cells_needed(settings: &Settings) -> Result<usize, Refused> {
+    let needs = settings.storage().map_err(|_| Refused::Layout)?;
+    if settings.readout != ReadoutChoice::Calibrated || needs.unit_pairs != 0 {
+        return Err(Refused::Readout);
     }
+    Ok(needs.cells)
 }
 
-/// Runs the configuration's pipeline until the stream ends or another configuration that fits
-/// `cells` arrives. `seq` is the yaw stream's sequence counter (carried across runs).
+/// Runs the settings' pipeline until the stream ends or other settings that fit `cells` arrive.
+/// `seq` is the yaw stream's sequence counter (carried across runs).
 ///
 /// # Errors
-/// When the configuration cannot run (see [`Refused`]).
+/// When the settings cannot run (see [`Refused`]).
 pub async fn run<K: YawSink, M: CostMeter>(
     kernel: &Kernel,
-    cfg: &StreamConfig,
+    settings: &Settings,
     cells: &mut CellStore,
     sink: &mut K,
     clock: Clock,
     seq: &mut u8,
 ) -> Result<Exit, Refused> {
-    match cfg.layout {
-        LayoutChoice::PaperBoxes => match boxes(cfg) {
-            Some(l) => run_layout::<_, K, M>(kernel, l, cfg, cells, sink, clock, seq).await,
-            None => Err(Refused::Layout),
-        },
-        _ => match dense(cfg) {
-            Some(l) => run_layout::<_, K, M>(kernel, l, cfg, cells, sink, clock, seq).await,
-            None => Err(Refused::Layout),
-        },
-    }
-}
-
-async fn run_layout<L: Layout, K: YawSink, M: CostMeter>(
-    kernel: &Kernel,
-    layout: L,
-    cfg: &StreamConfig,
-    cells: &mut CellStore,
-    sink: &mut K,
-    clock: Clock,
-    seq: &mut u8,
-) -> Result<Exit, Refused> {
-    let needed = layout.cell_count();
+    let needed = cells_needed(settings)?;
     let capacity = cells.capacity();
     let Some(cells) = cells.take(needed) else {
         return Err(Refused::Cells(needed));
     };
-    let pc = ProcessConfig {
-        focal_px: cfg.focal_px,
-        cx: cfg.cx,
-        cy: cfg.cy,
-        period_us: cfg.period_us,
-    };
-    let mut pipeline = process::build(kernel, layout, cells, &pc).map_err(|_| Refused::Network)?;
+    let mut pipeline = settings
+        .build(kernel, NetState::cells(cells))
+        .map_err(|_| Refused::Layout)?;
     defmt::info!("processing: {} cells", needed);
-    let accept = |new: &StreamConfig| cells_needed(new).is_some_and(|n| n <= capacity);
-    Ok(processing::run::<_, _, M>(&mut pipeline, sink, clock, seq, cfg, &accept).await)
+    let accept = |new: &Settings| cells_needed(new).is_ok_and(|n| n <= capacity);
+    Ok(processing::run::<_, M>(&mut pipeline, sink, clock, seq, settings, &accept).await)
 }
 
 /// A live board's processing: runs `defaults` (the build's constants), then each configuration
@@ -151,7 +113,7 @@ async fn run_layout<L: Layout, K: YawSink, M: CostMeter>(
 #[cfg_attr(feature = "board-qemu", allow(dead_code))]
 pub async fn serve<K: YawSink, M: CostMeter>(
     kernel: &Kernel,
-    defaults: StreamConfig,
+    defaults: Settings,
     cells: &mut CellStore,
     sink: &mut K,
 ) {

@@ -3,7 +3,7 @@
 
 use core_nostd::aer::frame::{flags, Frame, MAX_PAYLOAD};
 use core_nostd::aer::link::{LinkEvent, LinkReceiver};
-use core_nostd::aer::yaw::flags as yaw_flags;
+use core_nostd::flags as yaw_flags;
 
 use super::{
     raise_flags, update_stats, ByteSource, CostMeter, FrameBuf, Msg, Overload, SourceError, FRAMES,

@@ -20,7 +20,6 @@
 
 pub mod configured;
 pub mod input;
-pub mod process;
 pub mod processing;
 
 use core::cell::Cell;

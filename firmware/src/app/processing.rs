@@ -1,4 +1,5 @@
-//! The processing stage: checked frames -> events -> [`Pipeline`] -> yaw frames.
+//! The processing stage: checked frames -> events -> the pipeline [`Settings`] build -> yaw
+//! frames.
 //!
 //! Yaw samples follow event time: the pipeline emits the samples due before each event, on the
 //! 1 kHz grid of event timestamps, however fast the events are replayed; at the end of a replay
@@ -7,17 +8,17 @@
 //! the last event with the MCU clock (flag CLOCK), and the pipeline flags samples STALE once
 //! 100 ms have passed without events.
 
-use core_nostd::aer::config::StreamConfig;
 use core_nostd::aer::events::PayloadDecoder;
 use core_nostd::aer::frame::Kind;
-use core_nostd::aer::yaw::{flags, YawFrame};
-use core_nostd::layout::Layout;
+use core_nostd::aer::yaw::YawFrame;
+use core_nostd::flags;
+use core_nostd::readout::YawSample;
+use core_nostd::settings::{Built, Settings};
 use embassy_futures::select::{select, Either};
 use embassy_time::{Duration, Instant, Timer};
 use fixed::types::I16F16;
 
 use super::configured::Exit;
-use super::process::{Processor, YawSample};
 use super::{take_flags, update_stats, CostMeter, Msg, YawSink, FRAMES};
 
 /// Whether the MCU clock drives the output when no events arrive.
@@ -63,13 +64,13 @@ impl<K: YawSink> Out<'_, K> {
 /// differs from `current` and that `accept`s (then the samples due up to the last event are
 /// emitted first); forever on a live link otherwise. `seq` is the yaw frames' sequence
 /// counter, carried over from and to the previous and next run.
-pub async fn run<L: Layout, K: YawSink, M: CostMeter>(
-    pipeline: &mut Processor<'_, L>,
+pub async fn run<K: YawSink, M: CostMeter>(
+    pipeline: &mut Built<'_>,
     sink: &mut K,
     clock: Clock,
     seq: &mut u8,
-    current: &StreamConfig,
-    accept: &dyn Fn(&StreamConfig) -> bool,
+    current: &Settings,
+    accept: &dyn Fn(&Settings) -> bool,
 ) -> Exit {
     let mut payload = PayloadDecoder::new();
     let mut out = Out { sink, seq: *seq };
@@ -105,7 +106,7 @@ pub async fn run<L: Layout, K: YawSink, M: CostMeter>(
         };
         if frame.kind == Kind::Config {
             update_stats(|st| st.frames_processed += 1);
-            match StreamConfig::parse(frame.payload()) {
+            match Settings::parse(frame.payload()) {
                 Ok(new) if new == *current => {}
                 Ok(new) if accept(&new) => {
                     if let Some((t, _)) = last {
@@ -159,8 +160,8 @@ pub async fn run<L: Layout, K: YawSink, M: CostMeter>(
 }
 
 /// Live clock without frames: extrapolates event time from the last event and polls.
-fn clock_tick<L: Layout, K: YawSink>(
-    pipeline: &mut Processor<'_, L>,
+fn clock_tick<K: YawSink>(
+    pipeline: &mut Built<'_>,
     out: &mut Out<'_, K>,
     last: Option<(u32, Instant)>,
     start: Instant,

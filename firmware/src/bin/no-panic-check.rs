@@ -14,15 +14,12 @@
 use core::panic::PanicInfo;
 use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
 
-use core_nostd::aer::config::StreamConfig;
 use core_nostd::aer::events::PayloadDecoder;
 use core_nostd::aer::link::{LinkEvent, LinkReceiver};
 use core_nostd::fixed::types::U16F16;
-use core_nostd::layout::{Dense, Layout, PaperBoxes};
-use core_nostd::network::Cell;
-use core_nostd::pipeline;
-use core_nostd::readout::calibrated::Calibration;
+use core_nostd::network::{Cell, NetState};
 use core_nostd::readout::YawSample;
+use core_nostd::settings::{LayoutChoice, ReadoutChoice, Settings};
 use core_nostd::unit::Kernel;
 use cortex_m_rt::entry;
 
@@ -58,25 +55,27 @@ fn emit(s: YawSample) {
 
 /// A configuration frame's payload, as the processing stage reads it.
 fn config(payload: &[u8]) {
-    if let Ok(c) = StreamConfig::parse(payload) {
+    if let Ok(c) = Settings::parse(payload) {
         // SAFETY: as above.
         unsafe { write_volatile(addr_of_mut!(SINK), u32::from(c.width) ^ c.period_us) }
     }
 }
 
-fn run<L: Layout>(layout: L, cells: &mut [Cell]) {
-    let cal = Calibration::for_units(
-        U16F16::from_bits(param(0)),
-        U16F16::from_bits(param(1)),
-        U16F16::from_bits(param(4)),
-        layout.unit_count(),
-    );
-    let cal = Calibration {
+/// The pipeline of settings read from the input, on `layout`.
+fn run(layout: LayoutChoice, cells: &mut [Cell]) {
+    let settings = Settings {
+        width: param(6) as u16,
+        height: param(7) as u16,
+        focal_px: U16F16::from_bits(param(0)),
+        cx: U16F16::from_bits(param(1)),
+        cy: U16F16::from_bits(param(4)),
+        layout,
+        stride: param(3) as u16,
         period_us: param(2),
-        tau_a_us: param(3),
-        ..cal
+        readout: ReadoutChoice::Calibrated,
+        tau_a_us: Some(param(3)),
     };
-    let Ok(mut p) = pipeline::calibrated(&KERNEL, layout, cells, cal) else {
+    let Ok(mut p) = settings.build(&KERNEL, NetState::cells(cells)) else {
         return;
     };
     let mut link = LinkReceiver::new();
@@ -119,21 +118,16 @@ fn run<L: Layout>(layout: L, cells: &mut [Cell]) {
 fn main() -> ! {
     // SAFETY: CELLS is only used here, by this single thread.
     let cells: &mut [Cell] = unsafe { &mut *addr_of_mut!(CELLS) };
-    let (w, h) = (param(6) as u16, param(7) as u16);
-    if let Some(l) = PaperBoxes::new(w, h, u64::from(param(0))) {
-        run(l, cells);
-    }
-    if let Some(l) = Dense::window(
-        w,
-        h,
-        param(1) as u16,
-        param(2) as u16,
-        40,
-        40,
-        param(3) as u16,
-    ) {
-        run(l, cells);
-    }
+    run(LayoutChoice::PaperBoxes, cells);
+    run(
+        LayoutChoice::Window {
+            x0: param(1) as u16,
+            y0: param(2) as u16,
+            w: 40,
+            h: 40,
+        },
+        cells,
+    );
     loop {
         cortex_m::asm::nop();
     }

@@ -3,9 +3,9 @@
 //! DWT cycle meter, the input and status tasks, and the camera they assume until a
 //! configuration frame says otherwise.
 
-use core_nostd::aer::config::{LayoutChoice, StreamConfig};
 use core_nostd::aer::yaw::FRAME_BYTES;
 use core_nostd::fixed::types::U16F16;
+use core_nostd::settings::{LayoutChoice, Settings};
 use cortex_m::peripheral::DWT;
 use embassy_executor::{Executor, InterruptExecutor, SpawnError, SpawnToken};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
@@ -25,23 +25,17 @@ const SENSOR: (u16, u16) = (346, 260);
 /// stride 2, 1 kHz, on the widest dense layout `max_cells` cells hold: all 346 columns by as
 /// many rows as fit, centred on the principal row (full width gives the readout every column
 /// band; measured best on the F405, see `firmware/README.md`).
-pub const fn davis346_full_width(max_cells: usize) -> StreamConfig {
+pub const fn davis346_full_width(max_cells: usize) -> Settings {
     let rows = (max_cells / SENSOR.0 as usize) as u16;
     let rows = if rows > SENSOR.1 { SENSOR.1 } else { rows };
-    StreamConfig {
-        width: SENSOR.0,
-        height: SENSOR.1,
-        focal_px: U16F16::const_from_int(226),
-        cx: U16F16::from_bits(((SENSOR.0 as u32 - 1) << 16) / 2),
-        cy: U16F16::from_bits(((SENSOR.1 as u32 - 1) << 16) / 2),
+    Settings {
         layout: LayoutChoice::Window {
             x0: 0,
             y0: (SENSOR.1 - rows) / 2,
             w: SENSOR.0,
             h: rows,
         },
-        stride: 2,
-        period_us: 1_000,
+        ..Settings::for_sensor(SENSOR.0, SENSOR.1, U16F16::const_from_int(226))
     }
 }
 

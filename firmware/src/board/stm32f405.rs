@@ -19,8 +19,8 @@
 
 use core::mem::MaybeUninit;
 
-use core_nostd::aer::config::StreamConfig;
 use core_nostd::aer::yaw::FRAME_BYTES;
+use core_nostd::settings::Settings;
 use core_nostd::unit::Kernel;
 use defmt_rtt as _;
 use embassy_stm32::dma::{self, ReadableRingBuffer, TransferOptions};
@@ -35,7 +35,7 @@ use static_cell::StaticCell;
 use super::stm32_common::{self, CycleMeter, UartSink};
 use super::stm32_link::{self, SpiLink};
 use crate::app::configured::{self, CellStore};
-use crate::app::process::Cell;
+use core_nostd::network::Cell;
 
 bind_interrupts!(struct Irqs {
     DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
@@ -45,7 +45,7 @@ bind_interrupts!(struct Irqs {
 /// What runs until a configuration frame says otherwise: the full-width 346 x 15 dense strip of a
 /// DAVIS346 (5190 cells of 12 bytes, 62 280 B, 10 020 units), chosen by measurement over the
 /// paper's boxes and a 192 x 28 window (`firmware/README.md`).
-const DEFAULTS: StreamConfig = stm32_common::davis346_full_width(MAX_CELLS);
+const DEFAULTS: Settings = stm32_common::davis346_full_width(MAX_CELLS);
 /// Cells reserved in CCM: as many as its 64 KiB hold (the dense window is the largest layout).
 const MAX_CELLS: usize = 64 * 1024 / core::mem::size_of::<Cell>();
 /// SPI DMA ring size (bytes): 4 KiB is ~2 ms at 2 MB/s.

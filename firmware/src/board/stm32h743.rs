@@ -23,8 +23,8 @@
 
 use core::mem::MaybeUninit;
 
-use core_nostd::aer::config::StreamConfig;
 use core_nostd::aer::yaw::FRAME_BYTES;
+use core_nostd::settings::Settings;
 use core_nostd::unit::Kernel;
 use defmt_rtt as _;
 use embassy_stm32::dma::{self, ReadableRingBuffer, TransferOptions};
@@ -39,7 +39,7 @@ use static_cell::StaticCell;
 use super::stm32_common::{self, CycleMeter, UartSink};
 use super::stm32_link::{self, SpiLink};
 use crate::app::configured::{self, CellStore};
-use crate::app::process::Cell;
+use core_nostd::network::Cell;
 
 bind_interrupts!(struct Irqs {
     DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
@@ -49,7 +49,7 @@ bind_interrupts!(struct Irqs {
 /// What runs until a configuration frame says otherwise: the largest dense window of a DAVIS346
 /// that fits the AXI SRAM, all 346 columns by 126 rows (43 596 cells of 12 bytes, 523 152 B,
 /// 86 688 units).
-const DEFAULTS: StreamConfig = stm32_common::davis346_full_width(MAX_CELLS);
+const DEFAULTS: Settings = stm32_common::davis346_full_width(MAX_CELLS);
 /// Cells the AXI SRAM holds (512 KiB of 12-byte cells).
 const MAX_CELLS: usize = 512 * 1024 / core::mem::size_of::<Cell>();
 /// SPI DMA ring size (bytes): 4 KiB is ~1 ms at 4 MB/s.

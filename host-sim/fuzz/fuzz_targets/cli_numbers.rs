@@ -6,8 +6,8 @@
 #![no_main]
 
 use host_sim::cli::{Cli, Command};
-use host_sim::commands::run::run_pipeline;
-use host_sim::formats::{Format, HostEvent, Recording};
+use host_sim::pipeline::run_pipeline;
+use host_sim::formats::{Format, Event64, Recording};
 use libfuzzer_sys::fuzz_target;
 
 const FLAGS: [&str; 8] = [
@@ -31,7 +31,7 @@ const SPECIAL: [&str; 16] = [
 fn recording() -> Recording {
     let events = (0..400u64)
         .flat_map(|k| {
-            (0..32u16).step_by(8).map(move |y| HostEvent {
+            (0..32u16).step_by(8).map(move |y| Event64 {
                 t_us: 1000 + k * 100,
                 x: 63 - (k / 8 % 60) as u16,
                 y,
@@ -89,10 +89,11 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     // The f64 oracle is slow on large sensors and at high rates: a time-out is not a finding.
-    if sel & 1 == 1 && (args.rate_hz > 100_000 || args.width.is_some_and(|w| w > 256)) {
+    let opts = args.run.options();
+    if sel & 1 == 1 && (opts.rate_hz > 100_000 || opts.size.is_some_and(|(w, _)| w > 256)) {
         return;
     }
-    if let Ok(out) = run_pipeline(&args, &recording()) {
+    if let Ok(out) = run_pipeline(&opts, &recording()) {
         assert!(out
             .samples
             .iter()

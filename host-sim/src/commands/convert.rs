@@ -86,7 +86,7 @@ fn convert(args: &Args) -> Result<()> {
             w.finish()?;
         }
         To::Aer => {
-            crate::aer_stream::stream_aer(&mut reader, &mut out, None)?;
+            crate::aer_stream::stream_aer(&mut reader, &mut out, None, &[])?;
         }
     }
     out.commit()

@@ -7,14 +7,15 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 
-use crate::commands::run::{run_pipeline, Args as RunArgs};
-use crate::eval::{self, Estimate, EstimateKind, EvalOptions, Series};
+use crate::eval::{self, EstimateKind, EvalOptions, Series};
 use crate::formats::{self, Format, Recording};
+use crate::output::StagedDir;
+use crate::pipeline::{run_pipeline, write_yaw_csv, RunOptions};
 use crate::synth::{self, SynthConfig};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Output folder (scene files, yaw.csv, yaw.png, eval.png).
+    /// Output folder (scene files, yaw.csv, eval.png).
     #[arg(long, default_value = "out/demo")]
     pub out: PathBuf,
     /// Seed of the scene.
@@ -25,9 +26,12 @@ pub struct Args {
     pub duration: f64,
 }
 
+/// Runs `host-sim demo`. Every output is written into a staging folder inside `--out` and
+/// moved into `--out` together at the end: a failure (a figure that cannot be drawn, a name
+/// taken by a folder) leaves none of them.
 pub fn run(args: Args) -> Result<()> {
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let staged = StagedDir::create(&args.out)?;
+    let dir = staged.path();
     let cfg = SynthConfig {
         seed: args.seed,
         duration_s: args.duration,
@@ -38,7 +42,7 @@ pub fn run(args: Args) -> Result<()> {
         args.duration, args.seed
     );
     let seq = synth::generate(&cfg)?;
-    synth::write_sequence(&seq, &args.out)?;
+    synth::write_sequence(&seq, dir)?;
     let i = seq.intrinsics;
     let gt = Series::from_pairs(&seq.gt_yaw_rate());
     let gyro = Series::from_pairs(&seq.gyro_yaw_rate());
@@ -51,21 +55,24 @@ pub fn run(args: Args) -> Result<()> {
         format: Format::EcdText,
     };
     let yaw_csv = args.out.join("yaw.csv");
-    let run_args = RunArgs::new(args.out.join("events.txt"), yaw_csv.clone());
-    let out = run_pipeline(&run_args, &rec)?;
-    crate::commands::run::write_yaw_csv(&yaw_csv, &out.samples, false)?;
-    let est = Estimate {
-        kind: EstimateKind::RadPerSec,
-        series: Series::from_pairs(&out.samples.iter().map(|s| (s.0, s.1)).collect::<Vec<_>>()),
-        missing: 0,
-    };
-    let report = eval::evaluate(&est, &gt, Some(&gyro), &EvalOptions::default())?;
+    let out = run_pipeline(&RunOptions::default(), &rec)?;
+    write_yaw_csv(&dir.join("yaw.csv"), &out.samples, false)?;
+    let report = eval::evaluate_samples(
+        EstimateKind::RadPerSec,
+        out.samples.iter().map(|s| (s.0, s.1)),
+        0,
+        &gt,
+        Some(&gyro),
+        &EvalOptions::default(),
+    )?;
     let png = args.out.join("eval.png");
     eval::plot::plot_report(
         &report,
         "TDE yaw rate (fixed-point pipeline) vs ground truth and gyro",
-        &png,
-    )?;
+        &dir.join("eval.png"),
+    )
+    .with_context(|| format!("cannot draw {}", png.display()))?;
+    staged.commit()?;
     eprintln!(
         "demo: {} events, {} bursts decoded, {:.1} M events/s",
         out.events,

@@ -4,7 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::eval::{self, EvalOptions, Resample};
+use crate::eval::{
+    self, EstimateReader, EvalOptions, Evaluator, GyroYawReader, Resample, SampleSource,
+    TruthReader,
+};
 
 /// Arguments of `host-sim eval`.
 #[derive(Debug, clap::Args)]
@@ -31,27 +34,39 @@ pub struct Args {
     pub resample: Resample,
 }
 
-/// Runs `host-sim eval`.
+/// Runs `host-sim eval`: the estimate, the ground truth and the gyro are all streamed in
+/// chunks (constant memory whatever their lengths, see [`Evaluator`]); nothing is written or
+/// printed before the whole of them has been read and checked.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(p) = &args.plot {
         let mut inputs = vec![args.yaw.as_path(), args.gt.as_path()];
         inputs.extend(args.imu.as_deref());
         crate::output::check_distinct(&inputs, &[("--plot", p)])?;
     }
-    let est = eval::read_estimate(&args.yaw)?;
-    let gt = eval::read_gt(&args.gt)?;
-    let gyro = args.imu.as_deref().map(eval::read_gyro_yaw).transpose()?;
+    // The estimate's header first: a file that is not an estimate is the first error.
+    let mut est = EstimateReader::open(&args.yaw)?;
+    let gt = TruthReader::open(&args.gt)?;
+    let gyro = match args.imu.as_deref() {
+        Some(p) => Some(Box::new(GyroYawReader::open(p)?) as Box<dyn SampleSource>),
+        None => None,
+    };
     let opts = EvalOptions {
         resample: args.resample,
+        plot_points: args.plot.is_some(),
         ..EvalOptions::default()
     };
-    let report = eval::evaluate(&est, &gt, gyro.as_ref(), &opts)
-        .with_context(|| format!("{} vs {}", args.yaw.display(), args.gt.display()))?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print!("{}", report.to_text());
+    let context = format!("{} vs {}", args.yaw.display(), args.gt.display());
+    let mut ev = Evaluator::from_sources(est.kind(), Box::new(gt), gyro, &opts)
+        .with_context(|| context.clone())?
+        .labelled(context);
+    let mut chunk = Vec::with_capacity(eval::CHUNK);
+    while est.next_chunk(&mut chunk)? {
+        for &(t, v) in &chunk {
+            ev.push(t, v)?;
+        }
     }
+    let report = ev.finish(est.missing())?;
+    // The figure before the text: a figure that cannot be written is the only output.
     if let Some(p) = &args.plot {
         let title = format!(
             "{} vs {}",
@@ -62,7 +77,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.gt.display()
         );
         eval::plot::plot_report(&report, &title, p)?;
-        if !args.json {
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", report.to_text());
+        if let Some(p) = &args.plot {
             println!("plot: {}", p.display());
         }
     }

@@ -7,23 +7,16 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{ensure, Context, Result};
 use core_nostd::oracle::{self, OracleParams};
 use core_nostd::params::TdeParams;
 use core_nostd::unit::{pair_response, Kernel};
 use plotters::prelude::*;
 
-use crate::output::write_atomically;
+use crate::output::{check_distinct, commit_all, render_staged, AtomicFile, Staged};
 use crate::plot::{init_fonts, FONT};
 
-/// Which implementation of the unit to run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Model {
-    /// The fixed-point core that runs on the microcontroller.
-    Fixed,
-    /// The f64 oracle (exact in continuous time).
-    Float,
-}
+pub use crate::pipeline::Model;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -86,26 +79,32 @@ pub fn sweep(model: Model) -> Vec<Point> {
     }
 }
 
+/// Runs `host-sim sweep`: the CSV and the plot are put in place together, once both were
+/// written (a plot that cannot be drawn leaves no CSV either).
 pub fn run(args: Args) -> Result<()> {
+    if let Some(plot) = &args.plot {
+        ensure!(
+            plot != &args.out,
+            "--plot {} is also given to --out",
+            plot.display()
+        );
+        check_distinct(&[], &[("--out", &args.out), ("--plot", plot)])?;
+    }
     let points = sweep(args.model);
-    write_atomically(&args.out, |w| {
-        writeln!(w, "dt_ms,spikes,first_spike_ms")?;
-        for p in &points {
-            match p.first_spike_ms {
-                Some(f) => writeln!(w, "{:.1},{},{:.3}", p.dt_ms, p.spikes, f)?,
-                None => writeln!(w, "{:.1},{},", p.dt_ms, p.spikes)?,
-            }
-        }
-        Ok(())
-    })?;
+    let mut csv = AtomicFile::create(&args.out)?;
+    write_csv(csv.writer(), &points)
+        .with_context(|| format!("cannot write {}", args.out.display()))?;
+    let mut outputs = vec![Staged::from(csv)];
     if let Some(plot) = &args.plot {
         let (fixed, float) = match args.model {
             Model::Fixed => (points.clone(), sweep(Model::Float)),
             Model::Float => (sweep(Model::Fixed), points.clone()),
         };
-        crate::output::render_atomically(plot, |tmp| draw(tmp, &fixed, &float))
+        let png = render_staged(plot, |tmp| draw(tmp, &fixed, &float))
             .with_context(|| format!("cannot draw {}", plot.display()))?;
+        outputs.push(png.into());
     }
+    commit_all(outputs)?;
     let spiking = points.iter().filter(|p| p.spikes > 0).count();
     let max = points.iter().map(|p| p.spikes).max().unwrap_or(0);
     eprintln!(
@@ -116,6 +115,18 @@ pub fn run(args: Args) -> Result<()> {
         max,
         args.out.display()
     );
+    Ok(())
+}
+
+/// The CSV rows, with their header.
+fn write_csv(w: &mut impl Write, points: &[Point]) -> std::io::Result<()> {
+    writeln!(w, "dt_ms,spikes,first_spike_ms")?;
+    for p in points {
+        match p.first_spike_ms {
+            Some(f) => writeln!(w, "{:.1},{},{:.3}", p.dt_ms, p.spikes, f)?,
+            None => writeln!(w, "{:.1},{},", p.dt_ms, p.spikes)?,
+        }
+    }
     Ok(())
 }
 

@@ -97,6 +97,10 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub hot_pixels: u32,
     /// Sequence name in meta.json (default: <preset>_<texture>_<motion or regime>).
+    #[allow(
+        rustdoc::invalid_html_tags,
+        reason = "the text is also `--help`'s, where <preset> reads as a placeholder"
+    )]
     #[arg(long)]
     pub name: Option<String>,
     /// Render threads (0 = all cores, at most 4); the output does not depend on it.
@@ -222,7 +226,7 @@ impl Args {
 /// no larger than the 2048 x 2048 that EVT 3.0 addresses, the focal length and principal point
 /// within what `host-sim run` takes (1 to 65535 px, 0 to 65535 px).
 fn check_numbers(args: &Args) -> anyhow::Result<()> {
-    use crate::commands::run::{MAX_PX, MAX_SENSOR_SIDE};
+    use crate::pipeline::{MAX_PX, MAX_SENSOR_SIDE};
     let named = [
         ("--duration", Some(args.duration)),
         ("--max-rate", args.max_rate),

@@ -73,7 +73,7 @@ impl Unwrap {
     }
 }
 
-/// Decodes a yaw stream; frame times are unwrapped to `u64` µs (see [`Unwrap`]).
+/// Decodes a yaw stream; frame times are unwrapped to `u64` µs (see `Unwrap`).
 pub fn decode(bytes: &[u8]) -> (Vec<(u64, YawFrame)>, YawStats) {
     let mut dec = YawDecoder::new();
     let mut frames = Vec::new();

@@ -29,25 +29,36 @@ pub fn resample(src: &Series, at: &[f64], mode: Resample) -> Vec<Option<f64>> {
         while k < src.t.len() && src.t[k] <= t + T_EPS {
             k += 1;
         }
-        let v = match (mode, k) {
-            (_, 0) => None,
-            (Resample::Hold, k) => Some(src.v[k - 1]),
-            (Resample::Linear, k) if k == src.t.len() => {
-                (src.t[k - 1] >= t - T_EPS).then(|| src.v[k - 1])
-            }
-            (Resample::Linear, k) => {
-                let (t0, t1) = (src.t[k - 1], src.t[k]);
-                let (v0, v1) = (src.v[k - 1], src.v[k]);
-                if t1 - t0 <= T_EPS {
-                    Some(v1)
-                } else {
-                    Some(v0 + (v1 - v0) * ((t - t0) / (t1 - t0)).clamp(0.0, 1.0))
-                }
-            }
-        };
-        out.push(v);
+        let sample = |i: usize| Some((src.t[i], src.v[i]));
+        let last = k.checked_sub(1).and_then(sample);
+        let next = (k < src.t.len()).then_some(k).and_then(sample);
+        out.push(value_at(last, next, t, mode));
     }
     out
+}
+
+/// A signal at time `t` from its `last` sample at or before `t` (+[`T_EPS`]) and the `next` one
+/// after it (`None` at the end): the rule of [`resample`], for callers that hold only these two
+/// samples of a stream.
+#[must_use]
+pub fn value_at(
+    last: Option<(f64, f64)>,
+    next: Option<(f64, f64)>,
+    t: f64,
+    mode: Resample,
+) -> Option<f64> {
+    let (t0, v0) = last?;
+    match (mode, next) {
+        (Resample::Hold, _) => Some(v0),
+        (Resample::Linear, None) => (t0 >= t - T_EPS).then_some(v0),
+        (Resample::Linear, Some((t1, v1))) => {
+            if t1 - t0 <= T_EPS {
+                Some(v1)
+            } else {
+                Some(v0 + (v1 - v0) * ((t - t0) / (t1 - t0)).clamp(0.0, 1.0))
+            }
+        }
+    }
 }
 
 /// Root-mean-square of `a - b`.

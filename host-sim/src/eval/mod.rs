@@ -14,15 +14,36 @@
 //! A `normalized` estimate (the paper's readout, unitless) cannot be compared in rad/s: its
 //! correlation is reported as is, and every other figure is computed after a least-squares
 //! scale fit to the ground truth (an oracle step, reported as `scale`).
+//!
+//! Memory: all three inputs are streamed, so inputs of any length cost constant memory. The
+//! estimate is read in chunks ([`EstimateReader`]) and pushed into the [`Evaluator`], which
+//! pulls the ground truth and the gyro ([`SampleSource`]: [`TruthReader`], [`GyroYawReader`],
+//! read a chunk at a time by [`crate::formats::GroundTruthReader`] and
+//! [`crate::formats::GyroReader`]) only as far as the estimate has come, merging the three in
+//! time: each ground-truth time is placed on the grid as soon as the estimate has passed it, with
+//! the gyro interpolated there, and the figures accumulated with [`running::Running`]. Their
+//! times are checked as they come ([`TimeCheck`]); at the end the rest of both is read through,
+//! so that a fault anywhere in them is still an error. The figure keeps a decimated copy of the
+//! grid ([`Decimated`]). A normalized estimate is evaluated in two passes over the grid (the
+//! scale fit first, then the figures after it), the grid (time, ground truth, estimate) kept in
+//! an unlinked scratch file (24 bytes a point) between them.
 
+mod evaluator;
+mod inputs;
 pub mod metrics;
 pub mod plot;
+pub mod running;
 
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
 use anyhow::{bail, ensure, Context, Result};
 use serde::Serialize;
 
+use crate::samples::Decimated;
+pub use evaluator::Evaluator;
+pub use inputs::{GyroYawReader, SampleSource, SeriesSource, TimeCheck, TruthReader};
 pub use metrics::Resample;
 
 /// ARRE window length, s (the 50 ms steps).
@@ -78,165 +99,283 @@ pub struct Estimate {
     pub missing: usize,
 }
 
-/// Reads `t_s,yaw_rate_rad_s` (or `t_s,yaw_norm`) CSV with a header line; other columns are
-/// ignored. Rows with an empty or non-finite value are skipped and counted in `missing`.
+/// Longest line the CSV readers accept, bytes: a file without line breaks is refused rather
+/// than read whole into memory.
+pub const MAX_LINE: usize = 1 << 20;
+
+/// Samples per chunk of [`EstimateReader::next_chunk`].
+pub const CHUNK: usize = 1 << 13;
+
+/// A CSV with a header holding `t_s` and one of the value columns, read line by line: the
+/// samples with a finite value, the rows without one counted (empty, `nan`, `inf`). Times must
+/// not decrease.
+struct CsvSeries<R> {
+    input: R,
+    line: String,
+    /// Number of the line in `line` (1-based, blank lines counted).
+    ln: usize,
+    it: usize,
+    iv: usize,
+    column: String,
+    last_t: Option<f64>,
+    missing: usize,
+    samples: u64,
+}
+
+impl<R: BufRead> CsvSeries<R> {
+    /// Reads the header; `columns` are the value columns accepted, the first present is used.
+    fn new(input: R, columns: &[&str]) -> Result<Self> {
+        let mut csv = Self {
+            input,
+            line: String::new(),
+            ln: 0,
+            it: 0,
+            iv: 0,
+            column: String::new(),
+            last_t: None,
+            missing: 0,
+            samples: 0,
+        };
+        if !csv.next_line()? {
+            bail!(
+                "empty file (expected a header `t_s,{}`)",
+                columns.first().copied().unwrap_or("value")
+            );
+        }
+        let header = csv.line.trim_end_matches(['\n', '\r']);
+        let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+        csv.it = cols
+            .iter()
+            .position(|&c| c == "t_s")
+            .context("no `t_s` column in the header")?;
+        let Some((iv, name)) = columns
+            .iter()
+            .find_map(|&name| cols.iter().position(|&c| c == name).map(|i| (i, name)))
+        else {
+            bail!(
+                "no `{}` column in the header `{header}`",
+                columns.join("` or `")
+            );
+        };
+        csv.iv = iv;
+        csv.column = name.to_string();
+        Ok(csv)
+    }
+
+    /// Reads the next line that is not blank into `self.line`; false at the end.
+    fn next_line(&mut self) -> Result<bool> {
+        loop {
+            self.line.clear();
+            let n = (&mut self.input)
+                .take(MAX_LINE as u64 + 1)
+                .read_line(&mut self.line)
+                .with_context(|| format!("line {}: cannot read", self.ln + 1))?;
+            if n == 0 {
+                return Ok(false);
+            }
+            self.ln += 1;
+            ensure!(
+                self.line.len() <= MAX_LINE || self.line.ends_with('\n'),
+                "line {}: longer than {MAX_LINE} bytes",
+                self.ln
+            );
+            if !self.line.trim().is_empty() {
+                return Ok(true);
+            }
+        }
+    }
+
+    /// The next sample with a finite value; `None` at the end.
+    fn next_sample(&mut self) -> Result<Option<(f64, f64)>> {
+        while self.next_line()? {
+            let ln = self.ln;
+            let (mut ft, mut fv) = (None, None);
+            for (i, f) in self.line.split(',').enumerate() {
+                if i == self.it {
+                    ft = Some(f.trim());
+                }
+                if i == self.iv {
+                    fv = Some(f.trim());
+                }
+                if i >= self.it && i >= self.iv {
+                    break;
+                }
+            }
+            let too_few = || format!("line {ln}: too few columns");
+            let t: f64 = ft
+                .with_context(too_few)?
+                .parse()
+                .with_context(|| format!("line {ln}: bad time"))?;
+            ensure!(t.is_finite(), "line {ln}: time is not finite");
+            if let Some(last) = self.last_t {
+                ensure!(t >= last, "line {ln}: time goes backwards");
+            }
+            let raw = fv.with_context(too_few)?;
+            match raw.parse::<f64>() {
+                Ok(v) if v.is_finite() => {
+                    self.last_t = Some(t);
+                    self.samples += 1;
+                    return Ok(Some((t, v)));
+                }
+                Ok(_) => self.missing += 1,
+                Err(_) if raw.is_empty() => self.missing += 1,
+                Err(_) => bail!("line {ln}: bad value `{raw}`"),
+            }
+        }
+        ensure!(self.samples > 0, "no samples with a value");
+        Ok(None)
+    }
+
+    /// Reads up to [`CHUNK`] samples into `out` (cleared first); false when there are none
+    /// left.
+    fn next_chunk(&mut self, out: &mut Vec<(f64, f64)>) -> Result<bool> {
+        out.clear();
+        while out.len() < CHUNK {
+            match self.next_sample()? {
+                Some(s) => out.push(s),
+                None => break,
+            }
+        }
+        Ok(!out.is_empty())
+    }
+
+    /// All the remaining samples.
+    fn into_series(mut self) -> Result<(String, Series, usize)> {
+        let mut series = Series::default();
+        while let Some((t, v)) = self.next_sample()? {
+            series.t.push(t);
+            series.v.push(v);
+        }
+        Ok((self.column, series, self.missing))
+    }
+}
+
+/// An estimate CSV (`t_s,yaw_rate_rad_s` or `t_s,yaw_norm` with a header line; other columns
+/// are ignored) read in chunks, in constant memory: the input of a streaming evaluation
+/// ([`Evaluator`]). Rows with an empty or non-finite value are skipped and counted.
+pub struct EstimateReader<'a> {
+    csv: CsvSeries<Box<dyn BufRead + 'a>>,
+    kind: EstimateKind,
+    /// The file, named in errors.
+    name: Option<String>,
+}
+
+impl<'a> EstimateReader<'a> {
+    /// Opens `path` and reads its header.
+    ///
+    /// # Errors
+    /// When the file cannot be opened or its header lacks the columns.
+    pub fn open(path: &Path) -> Result<EstimateReader<'static>> {
+        let file = File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let input: Box<dyn BufRead> = Box::new(BufReader::with_capacity(1 << 16, file));
+        let name = path.display().to_string();
+        EstimateReader::new(input, Some(name.clone())).with_context(|| name)
+    }
+
+    /// Reads the header from `input`.
+    ///
+    /// # Errors
+    /// When the header lacks the columns.
+    pub fn from_reader(input: impl BufRead + 'a) -> Result<Self> {
+        Self::new(Box::new(input), None)
+    }
+
+    fn new(input: Box<dyn BufRead + 'a>, name: Option<String>) -> Result<Self> {
+        let csv = CsvSeries::new(input, &["yaw_rate_rad_s", "yaw_norm"])?;
+        let kind = if csv.column == "yaw_norm" {
+            EstimateKind::Normalized
+        } else {
+            EstimateKind::RadPerSec
+        };
+        Ok(Self { csv, kind, name })
+    }
+
+    /// Units of the values.
+    #[must_use]
+    pub fn kind(&self) -> EstimateKind {
+        self.kind
+    }
+
+    /// Rows without a value so far.
+    #[must_use]
+    pub fn missing(&self) -> usize {
+        self.csv.missing
+    }
+
+    /// Reads up to [`CHUNK`] samples `(t_s, value)` with a finite value into `out` (cleared
+    /// first); false at the end of the file.
+    ///
+    /// # Errors
+    /// On a malformed row, a time going backwards, or when the file has no sample with a value.
+    pub fn next_chunk(&mut self, out: &mut Vec<(f64, f64)>) -> Result<bool> {
+        let r = self.csv.next_chunk(out);
+        match &self.name {
+            Some(name) => r.with_context(|| name.clone()),
+            None => r,
+        }
+    }
+
+    /// The whole estimate, in memory.
+    ///
+    /// # Errors
+    /// As [`EstimateReader::next_chunk`].
+    pub fn into_estimate(self) -> Result<Estimate> {
+        let kind = self.kind;
+        let r = self.csv.into_series();
+        let (_, series, missing) = match self.name {
+            Some(name) => r.with_context(|| name)?,
+            None => r?,
+        };
+        Ok(Estimate {
+            kind,
+            series,
+            missing,
+        })
+    }
+}
+
+/// Reads `t_s,yaw_rate_rad_s` (or `t_s,yaw_norm`) CSV with a header line into memory; other
+/// columns are ignored. Rows with an empty or non-finite value are skipped and counted in
+/// `missing`. [`EstimateReader`] reads the same in chunks.
 pub fn read_estimate(path: &Path) -> Result<Estimate> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    parse_estimate(&text).with_context(|| format!("{}", path.display()))
+    EstimateReader::open(path)?.into_estimate()
 }
 
 /// [`read_estimate`] on text.
 pub fn parse_estimate(text: &str) -> Result<Estimate> {
-    let (column, series, missing) = parse_csv_series(text, &["yaw_rate_rad_s", "yaw_norm"])?;
-    let kind = if column == "yaw_norm" {
-        EstimateKind::Normalized
-    } else {
-        EstimateKind::RadPerSec
-    };
-    Ok(Estimate {
-        kind,
-        series,
-        missing,
-    })
-}
-
-/// Parses a CSV with a header holding `t_s` and the first of `columns` present. Returns the
-/// column used, the samples with a finite value and the number of rows without one (empty,
-/// `nan`, `inf`). Times must not decrease.
-fn parse_csv_series(text: &str, columns: &[&str]) -> Result<(String, Series, usize)> {
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    let Some((_, header)) = lines.next() else {
-        bail!("empty file (expected a header `t_s,{}`)", columns[0]);
-    };
-    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
-    let it = cols
-        .iter()
-        .position(|&c| c == "t_s")
-        .context("no `t_s` column in the header")?;
-    let Some((iv, name)) = columns
-        .iter()
-        .find_map(|&name| cols.iter().position(|&c| c == name).map(|i| (i, name)))
-    else {
-        bail!(
-            "no `{}` column in the header `{header}`",
-            columns.join("` or `")
-        );
-    };
-    let mut series = Series::default();
-    let mut missing = 0;
-    for (ln, line) in lines {
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        let field = |i: usize| {
-            fields
-                .get(i)
-                .copied()
-                .with_context(|| format!("line {}: too few columns", ln + 1))
-        };
-        let t: f64 = field(it)?
-            .parse()
-            .with_context(|| format!("line {}: bad time", ln + 1))?;
-        ensure!(t.is_finite(), "line {}: time is not finite", ln + 1);
-        if let Some(&last) = series.t.last() {
-            ensure!(t >= last, "line {}: time goes backwards", ln + 1);
-        }
-        let raw = field(iv)?;
-        match raw.parse::<f64>() {
-            Ok(v) if v.is_finite() => {
-                series.t.push(t);
-                series.v.push(v);
-            }
-            Ok(_) => missing += 1,
-            Err(_) if raw.is_empty() => missing += 1,
-            Err(_) => bail!("line {}: bad value `{raw}`", ln + 1),
-        }
-    }
-    ensure!(!series.is_empty(), "no samples with a value");
-    Ok((name.to_string(), series, missing))
+    EstimateReader::from_reader(text.as_bytes())?.into_estimate()
 }
 
 /// Ground-truth yaw rate (rad/s) from any file `formats::read_ground_truth` understands, or
-/// else a CSV with `t_s` and `yaw_rate` (or `yaw_rate_rad_s`) columns.
+/// else a CSV with `t_s` and `yaw_rate` (or `yaw_rate_rad_s`) columns, in memory: the samples
+/// of [`TruthReader`], with the checks of [`TimeCheck`].
+///
+/// # Errors
+/// When the file cannot be read or is malformed, or its times are not finite, go back or span
+/// no time.
 pub fn read_gt(path: &Path) -> Result<Series> {
-    let gt = match crate::formats::read_ground_truth(path) {
-        Ok(gt) => gt,
-        Err(e) => {
-            let simple = std::fs::read_to_string(path)
-                .ok()
-                .and_then(|text| parse_csv_series(&text, &["yaw_rate", "yaw_rate_rad_s"]).ok());
-            return match simple {
-                Some((_, series, _)) => {
-                    check_times(&series, "ground-truth")
-                        .with_context(|| path.display().to_string())?;
-                    Ok(series)
-                }
-                None => Err(e),
-            };
-        }
-    };
-    ensure!(
-        !gt.is_empty(),
-        "{}: no ground-truth samples",
-        path.display()
-    );
-    let series = Series {
-        t: gt.iter().map(|g| g.t_s).collect(),
-        v: gt.iter().map(|g| g.yaw_rate_rad_s).collect(),
-    };
-    check_times(&series, "ground-truth").with_context(|| path.display().to_string())?;
-    Ok(series)
+    inputs::collect(TruthReader::open(path)?, "ground-truth")
 }
 
-/// Checks that a signal's times are finite, never go back and span some time: ground truth or
-/// gyro that does not is refused rather than integrated into a meaningless heading.
-fn check_times(s: &Series, what: &str) -> Result<()> {
-    for (i, w) in s.t.windows(2).enumerate() {
-        if let [a, b] = *w {
-            ensure!(
-                a.is_finite() && b.is_finite(),
-                "{what} sample {} has a time that is not finite",
-                i + 1
-            );
-            ensure!(
-                b >= a,
-                "{what} time goes backwards at sample {} ({b} s after {a} s)",
-                i + 2
-            );
-        }
-    }
-    let (first, last) = (s.t.first().copied(), s.t.last().copied());
-    if let (Some(a), Some(b)) = (first, last) {
-        ensure!(
-            b > a,
-            "all {} {what} samples are at one time ({a} s): no time span to evaluate over",
-            s.len()
-        );
-    }
-    Ok(())
-}
-
-/// Gyro yaw rate `wy` (rad/s) from any file `formats::read_gyro` understands.
+/// Gyro yaw rate `wy` (rad/s) from any file `formats::read_gyro` understands, in memory: the
+/// samples of [`GyroYawReader`], with the checks of [`TimeCheck`].
+///
+/// # Errors
+/// As [`read_gt`].
 pub fn read_gyro_yaw(path: &Path) -> Result<Series> {
-    let g = crate::formats::read_gyro(path)?;
-    ensure!(!g.is_empty(), "{}: no gyro samples", path.display());
-    let series = Series {
-        t: g.iter().map(|s| s.t_s).collect(),
-        v: g.iter().map(|s| s.wy).collect(),
-    };
-    check_times(&series, "gyro").with_context(|| path.display().to_string())?;
-    Ok(series)
+    inputs::collect(GyroYawReader::open(path)?, "gyro")
 }
 
-/// Options of [`evaluate`].
+/// Options of [`evaluate`] and [`Evaluator`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EvalOptions {
     /// How the estimate is resampled at the ground-truth times.
     pub resample: Resample,
-    /// ARRE window, s.
+    /// ARRE window, s (finite, > 0).
     pub arre_step_s: f64,
+    /// Keep the points of the figure ([`Report::plot`]; at most
+    /// [`crate::samples::PLOT_POINTS`] per line).
+    pub plot_points: bool,
 }
 
 impl Default for EvalOptions {
@@ -244,6 +383,7 @@ impl Default for EvalOptions {
         Self {
             resample: Resample::Hold,
             arre_step_s: ARRE_STEP_S,
+            plot_points: true,
         }
     }
 }
@@ -271,17 +411,22 @@ pub struct Metrics {
     pub scale: Option<f64>,
 }
 
-/// The estimate (and gyro) resampled on the evaluation grid, for plotting.
+/// The points of the evaluation figure: the grid decimated ([`Decimated`], the same times in
+/// every line), each rate with its integrated heading (rad, integrated over the whole grid).
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Aligned {
-    /// Grid times, s.
-    pub t: Vec<f64>,
-    /// Ground-truth yaw rate, rad/s.
-    pub gt: Vec<f64>,
+pub struct PlotPoints {
+    /// Ground-truth yaw rate, rad/s; its times are those of every line.
+    pub gt: Decimated,
+    /// Integrated ground-truth heading, rad.
+    pub gt_heading: Decimated,
     /// Estimate, rad/s (scaled by the least-squares fit for a normalized estimate).
-    pub est: Vec<f64>,
+    pub est: Decimated,
+    /// Integrated estimate heading, rad.
+    pub est_heading: Decimated,
     /// Gyro yaw rate, rad/s.
-    pub gyro: Option<Vec<f64>>,
+    pub gyro: Option<Decimated>,
+    /// Integrated gyro heading, rad.
+    pub gyro_heading: Option<Decimated>,
 }
 
 /// The result of an evaluation.
@@ -307,123 +452,50 @@ pub struct Report {
     pub estimate: Metrics,
     /// Figures of the gyro, when given.
     pub gyro: Option<Metrics>,
-    /// The data on the grid (not serialized).
+    /// The points of the figure, when [`EvalOptions::plot_points`] (not serialized).
     #[serde(skip)]
-    pub aligned: Aligned,
+    pub plot: Option<PlotPoints>,
 }
 
-/// Figures of `sig` against `gt` on grid `t`.
-fn metrics_on(
-    t: &[f64],
-    sig: &[f64],
-    gt: &[f64],
-    peak: f64,
-    step: f64,
-    scale: Option<f64>,
-) -> Metrics {
-    let rmse = metrics::rmse(sig, gt);
-    let heading = metrics::integrate(t, sig).last().copied().unwrap_or(0.0);
-    let gt_heading = metrics::integrate(t, gt).last().copied().unwrap_or(0.0);
-    Metrics {
-        n: t.len(),
-        rmse_rad_s: rmse,
-        rmse_rel_peak: if peak > 0.0 { rmse / peak } else { f64::NAN },
-        correlation: metrics::pearson(sig, gt),
-        mean_error_rad_s: metrics::mean_error(sig, gt),
-        arre_rad: metrics::arre(t, sig, gt, step),
-        heading_rad: heading,
-        final_heading_error_rad: heading - gt_heading,
-        scale,
-    }
-}
-
-/// Evaluates `est` (and optionally the gyro yaw rate) against the ground-truth yaw rate `gt`.
-/// Errors when the estimate and the ground truth do not overlap in time.
+/// Evaluates `est` (and optionally the gyro yaw rate) against the ground-truth yaw rate `gt`:
+/// [`evaluate_samples`] on an estimate in memory.
+///
+/// # Errors
+/// When the estimate and the ground truth do not overlap in time, or see [`Evaluator`].
 pub fn evaluate(
     est: &Estimate,
     gt: &Series,
     gyro: Option<&Series>,
     opts: &EvalOptions,
 ) -> Result<Report> {
-    let e = &est.series;
-    let (Some(&e0), Some(&e1)) = (e.t.first(), e.t.last()) else {
-        bail!("the estimate has no samples");
-    };
-    let keep: Vec<usize> = (0..gt.len())
-        .filter(|&i| gt.t[i] >= e0 - metrics::T_EPS && gt.t[i] <= e1 + metrics::T_EPS)
-        .collect();
-    ensure!(
-        keep.len() >= 2,
-        "the estimate ({e0:.3}-{e1:.3} s) and the ground truth ({:.3}-{:.3} s) do not overlap",
-        gt.t.first().copied().unwrap_or(f64::NAN),
-        gt.t.last().copied().unwrap_or(f64::NAN)
-    );
-    let t: Vec<f64> = keep.iter().map(|&i| gt.t[i]).collect();
-    let g: Vec<f64> = keep.iter().map(|&i| gt.v[i]).collect();
-    let mut x: Vec<f64> = metrics::resample(e, &t, opts.resample)
-        .into_iter()
-        .map(|v| v.unwrap_or(0.0))
-        .collect();
-    let peak = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let step = opts.arre_step_s;
-    let correlation = metrics::pearson(&x, &g);
-    let scale = match est.kind {
-        EstimateKind::RadPerSec => None,
-        EstimateKind::Normalized => {
-            let k = metrics::scale_fit(&x, &g);
-            let k = if k.is_finite() { k } else { 0.0 };
-            x.iter_mut().for_each(|v| *v *= k);
-            Some(k)
-        }
-    };
-    let mut estimate = metrics_on(&t, &x, &g, peak, step, scale);
-    estimate.correlation = correlation;
-    if let Some(gs) = gyro {
-        let (g0, g1) = (
-            gs.t.first().copied().unwrap_or(f64::NAN),
-            gs.t.last().copied().unwrap_or(f64::NAN),
-        );
-        let (w0, w1) = (
-            t.first().copied().unwrap_or(0.0),
-            t.last().copied().unwrap_or(0.0),
-        );
-        ensure!(
-            g0 < w1 && g1 > w0,
-            "the gyro ({g0:.3}-{g1:.3} s) and the evaluation window ({w0:.3}-{w1:.3} s) do not overlap: are they on the same clock?"
-        );
+    let samples = est
+        .series
+        .t
+        .iter()
+        .copied()
+        .zip(est.series.v.iter().copied());
+    evaluate_samples(est.kind, samples, est.missing, gt, gyro, opts)
+}
+
+/// Evaluates the estimate samples `(t_s, value)` of `samples`, taken one at a time (in constant
+/// memory whatever their number), against `gt` (and the gyro); `missing` rows without a value
+/// were skipped before (samples with a non-finite value are counted with them).
+///
+/// # Errors
+/// See [`Evaluator`].
+pub fn evaluate_samples(
+    kind: EstimateKind,
+    samples: impl IntoIterator<Item = (f64, f64)>,
+    missing: usize,
+    gt: &Series,
+    gyro: Option<&Series>,
+    opts: &EvalOptions,
+) -> Result<Report> {
+    let mut ev = Evaluator::new(kind, gt, gyro, opts)?;
+    for (t, v) in samples {
+        ev.push(t, v)?;
     }
-    // The gyro, linearly interpolated; held at its first/last value outside its own span.
-    let gyro_aligned = gyro.map(|gs| {
-        let first = gs.v.first().copied().unwrap_or(0.0);
-        let last = gs.v.last().copied().unwrap_or(0.0);
-        let t0 = gs.t.first().copied().unwrap_or(0.0);
-        metrics::resample(gs, &t, Resample::Linear)
-            .into_iter()
-            .zip(&t)
-            .map(|(v, &ti)| v.unwrap_or(if ti < t0 { first } else { last }))
-            .collect::<Vec<f64>>()
-    });
-    let gyro_metrics = gyro_aligned
-        .as_ref()
-        .map(|gy| metrics_on(&t, gy, &g, peak, step, None));
-    Ok(Report {
-        kind: est.kind,
-        resample: opts.resample,
-        t_start_s: t[0],
-        t_end_s: t[t.len() - 1],
-        arre_step_s: step,
-        peak_gt_rad_s: peak,
-        gt_heading_rad: metrics::integrate(&t, &g).last().copied().unwrap_or(0.0),
-        missing_estimates: est.missing,
-        estimate,
-        gyro: gyro_metrics,
-        aligned: Aligned {
-            t,
-            gt: g,
-            est: x,
-            gyro: gyro_aligned,
-        },
-    })
+    ev.finish(missing)
 }
 
 impl Report {

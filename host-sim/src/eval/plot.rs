@@ -1,14 +1,16 @@
 //! The evaluation figure (like the paper's Fig. 6-7): yaw rate of the estimate, the ground truth
-//! and the gyro over time on top, their integrated headings below. PNG via plotters with the
-//! embedded font of [`crate::plot`].
+//! and the gyro over time on top, their integrated headings below, from the decimated points of
+//! [`super::PlotPoints`]. PNG via plotters with the embedded font of [`crate::plot`], written to
+//! a temporary file and renamed into place.
 
 use std::path::Path;
 
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 
-use super::{metrics, Report};
+use super::Report;
 use crate::plot::{init_fonts, line_panel, Line};
+use crate::samples::Decimated;
 
 const EST_COLOR: RGBColor = RGBColor(31, 119, 180);
 const GYRO_COLOR: RGBColor = RGBColor(255, 127, 14);
@@ -21,8 +23,11 @@ pub fn plot_report(report: &Report, title: &str, path: &Path) -> Result<()> {
 /// [`plot_report`] into the file `tmp`; errors name `path`.
 fn draw_report(report: &Report, title: &str, tmp: &Path, path: &Path) -> Result<()> {
     init_fonts();
-    let a = &report.aligned;
-    if a.t.len() < 2 {
+    let Some(p) = &report.plot else {
+        return Err(anyhow!("no plot points were kept for {}", path.display()));
+    };
+    let t = &p.gt.t;
+    if t.len() < 2 {
         return Err(anyhow!("nothing to plot"));
     }
     let err = |e: &dyn std::fmt::Display| anyhow!("cannot draw {}: {e}", path.display());
@@ -34,25 +39,17 @@ fn draw_report(report: &Report, title: &str, tmp: &Path, path: &Path) -> Result<
         None => "estimate".to_string(),
     };
 
-    // Yaw rate.
-    let mut series: Vec<(&str, &[f64], RGBColor)> = vec![("ground truth", &a.gt, BLACK)];
-    if let Some(g) = &a.gyro {
-        series.push(("gyro", g, GYRO_COLOR));
+    // Yaw rate, and the integrated heading (degrees) of each line.
+    let degrees = |d: &Decimated| -> Vec<f64> { d.v.iter().map(|v| v.to_degrees()).collect() };
+    let mut series: Vec<(&str, &[f64], Vec<f64>, RGBColor)> =
+        vec![("ground truth", &p.gt.v, degrees(&p.gt_heading), BLACK)];
+    if let (Some(g), Some(h)) = (&p.gyro, &p.gyro_heading) {
+        series.push(("gyro", &g.v, degrees(h), GYRO_COLOR));
     }
-    series.push((&est_label, &a.est, EST_COLOR));
-    let rates: Vec<Line<'_>> = series.iter().map(|&(n, v, c)| line(n, v, c)).collect();
-    line_panel(&top, title, 22, "yaw rate [rad/s]", &a.t, &rates, true).map_err(|e| err(&e))?;
+    series.push((&est_label, &p.est.v, degrees(&p.est_heading), EST_COLOR));
+    let rates: Vec<Line<'_>> = series.iter().map(|(n, v, _, c)| line(n, v, *c)).collect();
+    line_panel(&top, title, 22, "yaw rate [rad/s]", t, &rates, true).map_err(|e| err(&e))?;
 
-    // Integrated heading, degrees.
-    let headings: Vec<Vec<f64>> = series
-        .iter()
-        .map(|(_, v, _)| {
-            metrics::integrate(&a.t, v)
-                .into_iter()
-                .map(f64::to_degrees)
-                .collect()
-        })
-        .collect();
     let m = &report.estimate;
     let note = format!(
         "RMSE {:.3} rad/s ({:.1} % of peak), corr {:.3}, ARRE {:.4} rad, final heading error {:+.2} deg",
@@ -64,15 +61,14 @@ fn draw_report(report: &Report, title: &str, tmp: &Path, path: &Path) -> Result<
     );
     let heading_lines: Vec<Line<'_>> = series
         .iter()
-        .zip(&headings)
-        .map(|(&(name, _, color), h)| line(name, h, color))
+        .map(|(name, _, h, color)| line(name, h, *color))
         .collect();
     line_panel(
         &bottom,
         &note,
         16,
         "integrated heading [deg]",
-        &a.t,
+        t,
         &heading_lines,
         false,
     )

@@ -18,7 +18,7 @@ use flatbuffers::{
     Verifier, VerifierOptions,
 };
 
-use super::{GyroSample, HostEvent};
+use super::{Event64, GyroSample};
 
 const MAGIC: &[u8] = b"#!AER-DAT4.0\r\n";
 
@@ -387,7 +387,7 @@ impl<R: Read> Aedat4Reader<R> {
     /// When a packet is truncated, corrupt or malformed (the message names its byte offset).
     pub fn next_packet(
         &mut self,
-        events: &mut Vec<HostEvent>,
+        events: &mut Vec<Event64>,
         gyro: &mut Vec<GyroSample>,
     ) -> Result<bool> {
         let p = self.path.display();
@@ -484,7 +484,7 @@ impl<R: Read> Aedat4Reader<R> {
 }
 
 /// Appends the events of a decompressed `EVTS` packet.
-fn events_of(data: &[u8], out: &mut Vec<HostEvent>) -> std::result::Result<(), String> {
+fn events_of(data: &[u8], out: &mut Vec<Event64>) -> std::result::Result<(), String> {
     if !flatbuffers::buffer_has_identifier(data, "EVTS", true) {
         return Err("stream says events, packet is not EVTS".into());
     }
@@ -503,7 +503,7 @@ fn events_of(data: &[u8], out: &mut Vec<HostEvent>) -> std::result::Result<(), S
                 "event with negative time or address (t = {t}, x = {x}, y = {y})"
             ));
         };
-        out.push(HostEvent {
+        out.push(Event64 {
             t_us,
             x,
             y,
@@ -531,16 +531,38 @@ fn gyro_of(data: &[u8], out: &mut Vec<GyroSample>) -> std::result::Result<(), St
     Ok(())
 }
 
-/// Reads the IMU stream of an AEDAT 4.0 file as gyro samples (deg/s converted to rad/s).
-pub(super) fn read_gyro(path: &Path) -> Result<Vec<GyroSample>> {
-    let file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
-    let len = file
-        .metadata()
-        .ok()
-        .filter(|m| m.is_file())
-        .map(|m| m.len());
-    let mut r = Aedat4Reader::open(file, path, len, false, true)?;
-    let mut gyro = Vec::new();
-    while r.next_packet(&mut Vec::new(), &mut gyro)? {}
-    Ok(gyro)
+/// The IMU stream of an AEDAT 4.0 file as gyro samples (deg/s converted to rad/s), read a
+/// packet at a time.
+pub(super) struct GyroPackets {
+    r: Aedat4Reader<File>,
+    /// Never filled (the events are not read).
+    events: Vec<Event64>,
+}
+
+impl GyroPackets {
+    /// Opens `path` and reads its header.
+    pub(super) fn open(path: &Path) -> Result<Self> {
+        let file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+        let len = file
+            .metadata()
+            .ok()
+            .filter(|m| m.is_file())
+            .map(|m| m.len());
+        Ok(Self {
+            r: Aedat4Reader::open(file, path, len, false, true)?,
+            events: Vec::new(),
+        })
+    }
+
+    /// Replaces `out` with the samples of the next IMU packet that has any; false, with `out`
+    /// empty, at the end of the file.
+    pub(super) fn next_chunk(&mut self, out: &mut Vec<GyroSample>) -> Result<bool> {
+        out.clear();
+        while out.is_empty() {
+            if !self.r.next_packet(&mut self.events, out)? {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
 }

@@ -4,10 +4,11 @@
 use std::io::Write;
 use std::path::Path;
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 
-use super::text::{self, buf_line_error, csv_fields, Lines};
-use super::{GtSample, GyroSample, HostEvent};
+use super::rates::TextLines;
+use super::text::{self, csv_fields};
+use super::{Event64, GtSample, GyroSample};
 
 /// The header line written by [`write_csv`], identical to the reference decodes'.
 pub const CSV_HEADER: &str = "t_us,x,y,p";
@@ -27,7 +28,7 @@ pub(super) const EVENTS: text::LineFormat = text::LineFormat {
 ///
 /// # Errors
 /// When the file cannot be written.
-pub fn write_csv(events: &[HostEvent], out: &Path) -> Result<()> {
+pub fn write_csv(events: &[Event64], out: &Path) -> Result<()> {
     crate::output::write_atomically(out, |w| {
         let mut csv = CsvWriter::new(w, out)?;
         csv.push(events)?;
@@ -58,7 +59,7 @@ impl<'w, W: Write> CsvWriter<'w, W> {
     ///
     /// # Errors
     /// When the file cannot be written.
-    pub fn push(&mut self, events: &[HostEvent]) -> Result<()> {
+    pub fn push(&mut self, events: &[Event64]) -> Result<()> {
         let line = &mut self.line;
         for e in events {
             push_u64(line, e.t_us);
@@ -110,74 +111,216 @@ fn column(names: &[String], name: &str) -> Option<usize> {
     names.iter().position(|n| n == name)
 }
 
-/// Reads a CSV with a header line and returns, for every data row, the numbers in the columns
-/// named `wanted` (case-insensitive), in that order. `what` names those columns in errors.
-fn read_columns<const N: usize>(
-    path: &Path,
-    wanted: [&str; N],
-    what: &str,
-) -> Result<Vec<[f64; N]>> {
-    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut lines = Lines::new(&buf)
-        .enumerate()
-        .filter(|(_, (_, l))| !text::is_blank_or_comment(l));
-    let (_, (_, header)) = lines
-        .next()
-        .ok_or_else(|| anyhow!("{}: empty file", path.display()))?;
-    let names: Vec<String> = csv_fields(header)
-        .map(|f| String::from_utf8_lossy(f).to_ascii_lowercase())
-        .collect();
-    let mut cols = [0usize; N];
-    for (col, name) in cols.iter_mut().zip(wanted) {
-        *col = column(&names, name)
-            .ok_or_else(|| anyhow!("{}: header has no {what} columns", path.display()))?;
-    }
-    let mut out = Vec::new();
-    for (line_no, (off, line)) in lines {
-        let fields: Vec<&[u8]> = csv_fields(line).collect();
-        let mut row = [0.0f64; N];
-        for (v, &c) in row.iter_mut().zip(&cols) {
-            *v = match fields.get(c).and_then(|f| text::parse_f64(f)) {
-                Some(x) => x,
-                None => {
-                    return Err(buf_line_error(
-                        path,
-                        &buf,
-                        off,
-                        line_no + 1,
-                        line,
-                        &format!("numbers in the {what} columns"),
-                    ))
-                }
-            };
-        }
-        out.push(row);
-    }
-    Ok(out)
+/// A CSV with a header line, read a row at a time: for every data row, the numbers in the
+/// columns named `wanted` (case-insensitive), in that order; blank lines and `#` comments
+/// skipped.
+pub(super) struct ColumnRows<const N: usize> {
+    lines: TextLines,
+    cols: [usize; N],
+    /// The columns, as named in errors.
+    what: &'static str,
 }
 
-/// Reads this project's `gt.csv`: yaw rate = `wy` (camera y axis, down; positive = turning
-/// right).
-pub(super) fn read_gt(path: &Path) -> Result<Vec<GtSample>> {
-    Ok(read_columns(path, ["t_s", "wy"], "`t_s` and `wy`")?
-        .into_iter()
-        .map(|[t_s, wy]| GtSample {
+impl<const N: usize> ColumnRows<N> {
+    /// Opens `path` and finds the columns in its header; `what` names them in errors.
+    fn open(path: &Path, wanted: [&str; N], what: &'static str) -> Result<Self> {
+        let mut lines = TextLines::open(path)?;
+        if !lines.next_line()? {
+            bail!("{}: empty file", path.display());
+        }
+        let names: Vec<String> = csv_fields(lines.line())
+            .map(|f| String::from_utf8_lossy(f).to_ascii_lowercase())
+            .collect();
+        let mut cols = [0usize; N];
+        for (col, name) in cols.iter_mut().zip(wanted) {
+            *col = column(&names, name)
+                .ok_or_else(|| anyhow!("{}: header has no {what} columns", path.display()))?;
+        }
+        Ok(Self { lines, cols, what })
+    }
+
+    /// The numbers of the next row; `None` at the end of the file.
+    fn next_row(&mut self) -> Result<Option<[f64; N]>> {
+        if !self.lines.next_line()? {
+            return Ok(None);
+        }
+        let mut row = [None; N];
+        let last = self.cols.iter().copied().max().unwrap_or(0);
+        for (i, field) in csv_fields(self.lines.line()).enumerate().take(last + 1) {
+            for (v, &c) in row.iter_mut().zip(&self.cols) {
+                if c == i {
+                    *v = text::parse_f64(field);
+                }
+            }
+        }
+        let mut out = [0.0f64; N];
+        for (o, v) in out.iter_mut().zip(row) {
+            *o = v.ok_or_else(|| {
+                self.lines
+                    .error(&format!("numbers in the {} columns", self.what))
+            })?;
+        }
+        Ok(Some(out))
+    }
+}
+
+/// This project's `gt.csv`, a row at a time: yaw rate = `wy` (camera y axis, down; positive =
+/// turning right).
+pub(super) struct GtRows(ColumnRows<2>);
+
+impl GtRows {
+    pub(super) fn open(path: &Path) -> Result<Self> {
+        ColumnRows::open(path, ["t_s", "wy"], "`t_s` and `wy`").map(Self)
+    }
+
+    pub(super) fn next_sample(&mut self) -> Result<Option<GtSample>> {
+        Ok(self.0.next_row()?.map(|[t_s, wy]| GtSample {
             t_s,
             yaw_rate_rad_s: wy,
-        })
-        .collect())
+        }))
+    }
 }
 
-/// Reads an IMU CSV with `t_us` and `gyroscope_x/y/z` (deg/s) columns.
-pub(super) fn read_imu_csv(path: &Path) -> Result<Vec<GyroSample>> {
-    let cols = ["t_us", "gyroscope_x", "gyroscope_y", "gyroscope_z"];
-    Ok(read_columns(path, cols, "`t_us` and `gyroscope_x/y/z`")?
-        .into_iter()
-        .map(|[t, x, y, z]| GyroSample {
+/// An IMU CSV with `t_us` and `gyroscope_x/y/z` (deg/s) columns, a row at a time.
+pub(super) struct ImuCsvRows(ColumnRows<4>);
+
+impl ImuCsvRows {
+    pub(super) fn open(path: &Path) -> Result<Self> {
+        let cols = ["t_us", "gyroscope_x", "gyroscope_y", "gyroscope_z"];
+        ColumnRows::open(path, cols, "`t_us` and `gyroscope_x/y/z`").map(Self)
+    }
+
+    pub(super) fn next_sample(&mut self) -> Result<Option<GyroSample>> {
+        Ok(self.0.next_row()?.map(|[t, x, y, z]| GyroSample {
             t_s: t * 1e-6,
             wx: x.to_radians(),
             wy: y.to_radians(),
             wz: z.to_radians(),
-        })
-        .collect())
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::rates;
+    use crate::formats::text::{buf_line_error, Lines};
+
+    /// The columns `wanted` of every row, the file read whole: how `gt.csv` and IMU CSVs were
+    /// read before they streamed.
+    fn read_columns<const N: usize>(
+        path: &Path,
+        wanted: [&str; N],
+        what: &str,
+    ) -> Result<Vec<[f64; N]>> {
+        let buf = std::fs::read(path)?;
+        let mut lines = Lines::new(&buf)
+            .enumerate()
+            .filter(|(_, (_, l))| !text::is_blank_or_comment(l));
+        let (_, (_, header)) = lines
+            .next()
+            .ok_or_else(|| anyhow!("{}: empty file", path.display()))?;
+        let names: Vec<String> = csv_fields(header)
+            .map(|f| String::from_utf8_lossy(f).to_ascii_lowercase())
+            .collect();
+        let mut cols = [0usize; N];
+        for (col, name) in cols.iter_mut().zip(wanted) {
+            *col = column(&names, name)
+                .ok_or_else(|| anyhow!("{}: header has no {what} columns", path.display()))?;
+        }
+        let mut out = Vec::new();
+        for (line_no, (off, line)) in lines {
+            let fields: Vec<&[u8]> = csv_fields(line).collect();
+            let mut row = [0.0f64; N];
+            for (v, &c) in row.iter_mut().zip(&cols) {
+                *v = fields
+                    .get(c)
+                    .and_then(|f| text::parse_f64(f))
+                    .ok_or_else(|| {
+                        let expected = format!("numbers in the {what} columns");
+                        buf_line_error(path, &buf, off, line_no + 1, line, &expected)
+                    })?;
+            }
+            out.push(row);
+        }
+        Ok(out)
+    }
+
+    #[test]
+    fn row_by_row_reads_what_the_whole_file_gave() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("gt.csv");
+        let rows = |n: usize| -> String {
+            (0..n)
+                .map(|k| {
+                    let end = if k % 999 == 3 { "\r\n" } else { "\n" };
+                    let extra = if k % 5000 == 1 { "# comment\n\n" } else { "" };
+                    format!(
+                        "{extra}{:.6}, 0,{:.9} ,0,1{end}",
+                        k as f64 * 1e-3,
+                        (k as f64).sin()
+                    )
+                })
+                .collect()
+        };
+        let header = "# made here\nt_s,wx,WY,wz,speed\n";
+        let cases: [(&str, String, Option<&str>); 7] = [
+            ("good", format!("{header}{}", rows(25_000)), None),
+            ("empty", "\n# nothing\n".into(), Some("empty file")),
+            (
+                "no wy",
+                format!("t_s,wx\n{}", rows(3)),
+                Some("header has no"),
+            ),
+            (
+                "short row",
+                format!("{header}{}0.5,0\n", rows(20_000)),
+                Some("malformed line"),
+            ),
+            (
+                "truncated",
+                format!("{header}{}0.5,0", rows(20_000)),
+                Some("truncated line"),
+            ),
+            (
+                "bad number",
+                format!("{header}{}0.5,0,x,0\n{}", rows(9_000), rows(10)),
+                Some("malformed line"),
+            ),
+            (
+                "infinite",
+                format!("{header}{}0.5,0,inf,0\n", rows(10)),
+                Some("malformed line"),
+            ),
+        ];
+        for (what, text, error) in cases {
+            std::fs::write(&p, text).unwrap();
+            let mut r = GtRows::open(&p);
+            let streamed = r
+                .as_mut()
+                .map_err(|e| anyhow!("{e:#}"))
+                .and_then(|r| rates::collect(|out| rates::fill(out, || r.next_sample())));
+            let whole = read_columns(&p, ["t_s", "wy"], "`t_s` and `wy`");
+            match (streamed, whole) {
+                (Ok(a), Ok(b)) => {
+                    assert!(error.is_none(), "{what}");
+                    assert_eq!(a.len(), b.len(), "{what}");
+                    assert!(a
+                        .iter()
+                        .zip(&b)
+                        .all(|(s, &[t, wy])| s.t_s == t && s.yaw_rate_rad_s == wy));
+                }
+                (Err(a), Err(b)) => {
+                    let (a, b) = (format!("{a:#}"), format!("{b:#}"));
+                    assert_eq!(a, b, "{what}");
+                    assert!(a.contains(error.unwrap()), "{what}: {a}");
+                }
+                (a, b) => panic!(
+                    "{what}: {:?} vs {:?}",
+                    a.map(|v| v.len()),
+                    b.map(|v| v.len())
+                ),
+            }
+        }
+    }
 }

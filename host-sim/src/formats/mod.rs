@@ -21,12 +21,15 @@
 //!   bad input.
 //! - [`EventReader`] reads the events of every format a chunk at a time (memory bounded by the
 //!   chunk, not the recording); [`read`] collects them all, for recordings that fit in memory.
+//!   [`GroundTruthReader`] and [`GyroReader`] do the same for ground truth and gyro;
+//!   [`read_ground_truth`] and [`read_gyro`] collect theirs.
 
 mod aedat4;
 mod csv;
 mod ecd;
 mod meta;
 mod mvsec;
+mod rates;
 pub mod raw;
 mod rotation;
 pub mod stream;
@@ -38,47 +41,16 @@ use std::io::Read;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use core_nostd::event::Event64;
 
 pub use csv::{write_csv, CsvWriter};
 pub use meta::Needs;
+pub use rates::{GroundTruthReader, GyroReader};
 pub use raw::write_evt3;
 pub use stream::{EventChunks, EventReader, EventsInMemory, RecordingInfo};
 
-/// One event on the host: absolute time in µs (`u64`), pixel and polarity.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub struct HostEvent {
-    /// Timestamp in µs, as in the file (AEDAT4: since the Unix epoch).
-    pub t_us: u64,
-    /// Column, 0 = left.
-    pub x: u16,
-    /// Row, 0 = top.
-    pub y: u16,
-    /// `true` for ON (log intensity increased).
-    pub on: bool,
-}
-
-impl From<Event64> for HostEvent {
-    fn from(e: Event64) -> Self {
-        Self {
-            t_us: e.t_us,
-            x: e.x,
-            y: e.y,
-            on: e.on,
-        }
-    }
-}
-
-impl From<HostEvent> for Event64 {
-    fn from(e: HostEvent) -> Self {
-        Self {
-            t_us: e.t_us,
-            x: e.x,
-            y: e.y,
-            on: e.on,
-        }
-    }
-}
+/// One event on the host: absolute time in µs (`u64`), pixel and polarity (the core's
+/// decoder output type, used as is).
+pub use core_nostd::event::Event64;
 
 /// Pinhole intrinsics in pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -162,7 +134,7 @@ impl fmt::Display for Format {
 #[derive(Clone, Debug)]
 pub struct Recording {
     /// Events in stream order (time-sorted in every well-formed file, not re-sorted here).
-    pub events: Vec<HostEvent>,
+    pub events: Vec<Event64>,
     /// Sensor width in px, when known.
     pub width: Option<u16>,
     /// Sensor height in px, when known.
@@ -310,22 +282,13 @@ pub fn read(path: impl AsRef<Path>, format: Option<Format>) -> Result<Recording>
 /// The camera frame is x right, y down, z forward; a positive rotation about y (down) turns the
 /// camera's forward axis towards its right.
 ///
+/// [`GroundTruthReader`] reads the same a chunk at a time.
+///
 /// # Errors
 /// When the file cannot be read or is not one of these formats, or is malformed.
 pub fn read_ground_truth(path: impl AsRef<Path>) -> Result<Vec<GtSample>> {
-    let path = path.as_ref();
-    let head = read_head(path)?;
-    if head.starts_with(HDF5_MAGIC) {
-        return mvsec::read_ground_truth(path);
-    }
-    match text::classify(&head) {
-        text::Kind::GtCsv => csv::read_gt(path),
-        text::Kind::PoseText => ecd::read_ground_truth(path),
-        _ => bail!(
-            "{}: not a ground-truth file (expected gt.csv `t_s,wx,wy,wz,...`, ECD groundtruth.txt `t px py pz qx qy qz qw` or MVSEC *_gt.hdf5)",
-            path.display()
-        ),
-    }
+    let mut r = GroundTruthReader::open(path)?;
+    rates::collect(|out| r.next_chunk(out))
 }
 
 /// Reads gyro samples (rad/s) from an Event Camera Dataset / synthetic `imu.txt`
@@ -333,25 +296,13 @@ pub fn read_ground_truth(path: impl AsRef<Path>) -> Result<Vec<GtSample>> {
 /// `*_data.hdf5` (`davis/left/imu` `[ax ay az wx wy wz]` + `imu_ts`), or an IMU CSV with
 /// `t_us` and `gyroscope_x/y/z` columns in deg/s (the AEDAT4 reference decode).
 ///
+/// [`GyroReader`] reads the same a chunk at a time.
+///
 /// # Errors
 /// When the file cannot be read, is not one of these formats, or is malformed.
 pub fn read_gyro(path: impl AsRef<Path>) -> Result<Vec<GyroSample>> {
-    let path = path.as_ref();
-    let head = read_head(path)?;
-    if head.starts_with(AEDAT4_MAGIC) {
-        return aedat4::read_gyro(path);
-    }
-    if head.starts_with(HDF5_MAGIC) {
-        return mvsec::read_gyro(path);
-    }
-    match text::classify(&head) {
-        text::Kind::ImuText => ecd::read_imu(path),
-        text::Kind::ImuCsv => csv::read_imu_csv(path),
-        _ => bail!(
-            "{}: not a gyro file (expected imu.txt `t ax ay az gx gy gz`, AEDAT4 with IMU or MVSEC *_data.hdf5)",
-            path.display()
-        ),
-    }
+    let mut r = GyroReader::open(path)?;
+    rates::collect(|out| r.next_chunk(out))
 }
 
 /// Bytes read for format detection.

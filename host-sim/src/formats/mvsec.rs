@@ -10,9 +10,12 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
 
-use super::rotation::{yaw_rates_central, Mat3};
+use hdf5::{Hyperslab, SliceOrIndex};
+
+use super::rates;
+use super::rotation::{CentralDifferences, Mat3};
 use super::text::seconds_to_us;
-use super::{GtSample, GyroSample, HostEvent};
+use super::{Event64, GtSample, GyroSample};
 
 fn open(path: &Path) -> Result<hdf5::File> {
     precheck(path)?;
@@ -110,14 +113,19 @@ fn check_chunks(ds: &hdf5::Dataset, path: &Path, name: &str, shape: &[usize]) ->
     Ok(())
 }
 
-/// Reads dataset `name` as f64 with its shape.
-fn dataset(file: &hdf5::File, path: &Path, name: &str) -> Result<(Vec<f64>, Vec<usize>)> {
-    let ds = checked_dataset(file, path, name)?;
+/// Checks that dataset `name` reads as f64 (its element type converts), by reading one value:
+/// a dataset that cannot is refused before its shape is looked at, as when it was read whole.
+fn probe(ds: &hdf5::Dataset, path: &Path, name: &str) -> Result<()> {
     let shape = ds.shape();
-    let data = ds
-        .read_raw::<f64>()
-        .map_err(|e| anyhow!("{}: cannot read `{name}`: {e}", path.display()))?;
-    Ok((data, shape))
+    let read = if shape.iter().product::<usize>() <= 1 {
+        ds.read_raw::<f64>().map(drop)
+    } else {
+        let first: Vec<SliceOrIndex> = (0..shape.len())
+            .map(|i| if i == 0 { (0..1).into() } else { 0.into() })
+            .collect();
+        ds.read_slice_1d::<f64, _>(Hyperslab::from(first)).map(drop)
+    };
+    read.map_err(|e| anyhow!("{}: cannot read `{name}`: {e}", path.display()))
 }
 
 /// Checks that `shape` is `[n, cols...]` and returns n.
@@ -167,7 +175,7 @@ impl MvsecEvents {
     ///
     /// # Errors
     /// When the rows cannot be read or an event is malformed.
-    pub fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
+    pub fn next_chunk(&mut self, out: &mut Vec<Event64>) -> Result<bool> {
         if self.next >= self.rows {
             return Ok(false);
         }
@@ -199,7 +207,7 @@ impl MvsecEvents {
     /// # Errors
     /// When the IMU datasets are malformed.
     pub fn gyro(&self) -> Result<Option<Vec<GyroSample>>> {
-        if self.file.link_exists("davis/left/imu") {
+        if self.file.link_exists(IMU) {
             Ok(Some(gyro_of(&self.file, &self.path)?))
         } else {
             Ok(None)
@@ -208,7 +216,7 @@ impl MvsecEvents {
 }
 
 /// One event row `[x, y, t_s, p]`.
-fn event(x: f64, y: f64, t: f64, p: f64) -> Option<HostEvent> {
+fn event(x: f64, y: f64, t: f64, p: f64) -> Option<Event64> {
     let t_us = seconds_to_us(t)?;
     let x = pixel(x)?;
     let y = pixel(y)?;
@@ -219,7 +227,7 @@ fn event(x: f64, y: f64, t: f64, p: f64) -> Option<HostEvent> {
     } else {
         return None;
     };
-    Some(HostEvent { t_us, x, y, on })
+    Some(Event64 { t_us, x, y, on })
 }
 
 /// A pixel coordinate stored as a float: a non-negative integer below 65536.
@@ -228,51 +236,300 @@ fn pixel(v: f64) -> Option<u16> {
 }
 
 fn gyro_of(file: &hdf5::File, path: &Path) -> Result<Vec<GyroSample>> {
-    let (imu, shape) = dataset(file, path, "davis/left/imu")?;
-    let n = rows(path, "davis/left/imu", &shape, &[6])?;
-    let (ts, ts_shape) = dataset(file, path, "davis/left/imu_ts")?;
-    if ts_shape != [n] {
+    let mut r = ImuRates::of(file, path)?;
+    rates::collect(|out| r.next_chunk(out))
+}
+
+const IMU: &str = "davis/left/imu";
+const IMU_TS: &str = "davis/left/imu_ts";
+const POSE: &str = "davis/left/pose";
+const POSE_TS: &str = "davis/left/pose_ts";
+
+/// Checks dataset `name`'s storage and element type, and that its shape is `[n, cols...]`;
+/// returns it and n.
+fn rows_dataset(
+    file: &hdf5::File,
+    path: &Path,
+    name: &str,
+    cols: &[usize],
+) -> Result<(hdf5::Dataset, usize)> {
+    let ds = checked_dataset(file, path, name)?;
+    probe(&ds, path, name)?;
+    let n = rows(path, name, &ds.shape(), cols)?;
+    Ok((ds, n))
+}
+
+/// Checks the times dataset `name` of `n` rows of `of`.
+fn times_dataset(
+    file: &hdf5::File,
+    path: &Path,
+    name: &str,
+    n: usize,
+    of: &str,
+) -> Result<hdf5::Dataset> {
+    let ds = checked_dataset(file, path, name)?;
+    probe(&ds, path, name)?;
+    let shape = ds.shape();
+    if shape != [n] {
         bail!(
-            "{}: `davis/left/imu_ts` has shape {ts_shape:?}, `davis/left/imu` has {n} rows",
+            "{}: `{name}` has shape {shape:?}, `{of}` has {n} rows",
             path.display()
         );
     }
-    let (chunks, _) = imu.as_chunks::<6>();
-    Ok(chunks
-        .iter()
-        .zip(ts)
-        .map(|(&[_, _, _, wx, wy, wz], t_s)| GyroSample { t_s, wx, wy, wz })
-        .collect())
+    Ok(ds)
 }
 
-/// Reads `davis/left/imu` + `imu_ts` of an MVSEC `*_data.hdf5` as gyro samples (rad/s).
-pub(super) fn read_gyro(path: &Path) -> Result<Vec<GyroSample>> {
-    gyro_of(&open(path)?, path)
+/// Reads rows `rows` of the 1-D dataset `name`.
+fn read_times(
+    ds: &hdf5::Dataset,
+    path: &Path,
+    name: &str,
+    rows: std::ops::Range<usize>,
+) -> Result<Vec<f64>> {
+    ds.read_slice_1d::<f64, _>(rows)
+        .map(|a| a.into_iter().collect())
+        .map_err(|e| anyhow!("{}: cannot read `{name}`: {e}", path.display()))
 }
 
-/// Reads `davis/left/pose` + `pose_ts` of an MVSEC `*_gt.hdf5` and differentiates the
-/// orientation (see [`super::read_ground_truth`]).
-pub(super) fn read_ground_truth(path: &Path) -> Result<Vec<GtSample>> {
-    let file = open(path)?;
-    let (pose, shape) = dataset(&file, path, "davis/left/pose")?;
-    let n = rows(path, "davis/left/pose", &shape, &[4, 4])?;
-    let (ts, ts_shape) = dataset(&file, path, "davis/left/pose_ts")?;
-    if ts_shape != [n] {
-        bail!(
-            "{}: `davis/left/pose_ts` has shape {ts_shape:?}, `davis/left/pose` has {n} rows",
-            path.display()
-        );
+/// `davis/left/imu` + `imu_ts` of an MVSEC `*_data.hdf5` as gyro samples (rad/s), read a slice
+/// of [`ROWS_PER_READ`] rows at a time.
+pub(super) struct ImuRates {
+    imu: hdf5::Dataset,
+    ts: hdf5::Dataset,
+    path: std::path::PathBuf,
+    rows: usize,
+    next: usize,
+}
+
+impl ImuRates {
+    /// Opens the file and checks the datasets' storage, element types and shapes.
+    pub(super) fn open(path: &Path) -> Result<Self> {
+        Self::of(&open(path)?, path)
     }
-    let (mats, _) = pose.as_chunks::<16>();
-    let poses: Vec<(f64, Mat3)> = mats
-        .iter()
-        .zip(ts)
-        .map(|(m, t)| {
-            (
-                t,
-                Mat3([[m[0], m[1], m[2]], [m[4], m[5], m[6]], [m[8], m[9], m[10]]]),
-            )
+
+    fn of(file: &hdf5::File, path: &Path) -> Result<Self> {
+        let (imu, rows) = rows_dataset(file, path, IMU, &[6])?;
+        let ts = times_dataset(file, path, IMU_TS, rows, IMU)?;
+        Ok(Self {
+            imu,
+            ts,
+            path: path.to_path_buf(),
+            rows,
+            next: 0,
         })
-        .collect();
-    yaw_rates_central(&poses).map_err(|e| anyhow!("{}: {e}", path.display()))
+    }
+
+    /// Replaces `out` with the samples of the next rows; false, with `out` empty, after the
+    /// last row.
+    pub(super) fn next_chunk(&mut self, out: &mut Vec<GyroSample>) -> Result<bool> {
+        out.clear();
+        if self.next >= self.rows {
+            return Ok(false);
+        }
+        let end = (self.next + ROWS_PER_READ).min(self.rows);
+        let p = self.path.display();
+        let block = self
+            .imu
+            .read_slice_2d::<f64, _>((self.next..end, ..))
+            .map_err(|e| anyhow!("{p}: cannot read `{IMU}`: {e}"))?;
+        let data = block
+            .as_slice()
+            .ok_or_else(|| anyhow!("{p}: cannot read `{IMU}`: rows not contiguous"))?;
+        let ts = read_times(&self.ts, &self.path, IMU_TS, self.next..end)?;
+        let (imu, _) = data.as_chunks::<6>();
+        out.extend(
+            imu.iter()
+                .zip(ts)
+                .map(|(&[_, _, _, wx, wy, wz], t_s)| GyroSample { t_s, wx, wy, wz }),
+        );
+        self.next = end;
+        Ok(true)
+    }
+}
+
+/// `davis/left/pose` + `pose_ts` of an MVSEC `*_gt.hdf5`, read a slice of rows at a time, the
+/// orientation differentiated as the poses come (see [`super::read_ground_truth`]).
+pub(super) struct PoseRates {
+    pose: hdf5::Dataset,
+    ts: hdf5::Dataset,
+    path: std::path::PathBuf,
+    rows: usize,
+    next: usize,
+    /// Rows per read.
+    step: usize,
+    diff: CentralDifferences,
+    /// The last pose's rate was given.
+    done: bool,
+}
+
+impl PoseRates {
+    /// Opens the file and checks the datasets' storage, element types and shapes.
+    pub(super) fn open(path: &Path) -> Result<Self> {
+        let file = open(path)?;
+        let (pose, rows) = rows_dataset(&file, path, POSE, &[4, 4])?;
+        let ts = times_dataset(&file, path, POSE_TS, rows, POSE)?;
+        Ok(Self {
+            pose,
+            ts,
+            path: path.to_path_buf(),
+            rows,
+            next: 0,
+            // The rotation part of each pose: 3 rows of 4 values.
+            step: ROWS_PER_READ / 4,
+            diff: CentralDifferences::default(),
+            done: false,
+        })
+    }
+
+    /// Replaces `out` with the yaw rates of the next rows; false, with `out` empty, after the
+    /// last row.
+    pub(super) fn next_chunk(&mut self, out: &mut Vec<GtSample>) -> Result<bool> {
+        out.clear();
+        let p = self.path.display().to_string();
+        while out.is_empty() {
+            if self.next >= self.rows {
+                if self.done {
+                    return Ok(false);
+                }
+                self.done = true;
+                let last = self.diff.finish().map_err(|e| anyhow!("{p}: {e}"))?;
+                out.extend(last);
+                break;
+            }
+            let end = (self.next + self.step).min(self.rows);
+            // Rows 0-2 of the 4 x 4 matrices, each [end - next, 4].
+            let mut blocks = Vec::with_capacity(3);
+            for i in 0..3 {
+                let block = self
+                    .pose
+                    .read_slice_2d::<f64, _>((self.next..end, i, ..))
+                    .map_err(|e| anyhow!("{p}: cannot read `{POSE}`: {e}"))?;
+                blocks.push(block);
+            }
+            let mut r = blocks.iter().map(|b| {
+                b.as_slice()
+                    .map(|d| d.as_chunks::<4>().0)
+                    .ok_or_else(|| anyhow!("{p}: cannot read `{POSE}`: rows not contiguous"))
+            });
+            let (Some(r0), Some(r1), Some(r2)) = (r.next(), r.next(), r.next()) else {
+                bail!("{p}: cannot read `{POSE}`");
+            };
+            let (r0, r1, r2) = (r0?, r1?, r2?);
+            let ts = read_times(&self.ts, &self.path, POSE_TS, self.next..end)?;
+            for (((t, a), b), c) in ts.into_iter().zip(r0).zip(r1).zip(r2) {
+                let m = Mat3([[a[0], a[1], a[2]], [b[0], b[1], b[2]], [c[0], c[1], c[2]]]);
+                if let Some(s) = self.diff.push(t, m).map_err(|e| anyhow!("{p}: {e}"))? {
+                    out.push(s);
+                }
+            }
+            self.next = end;
+        }
+        Ok(true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::rotation::yaw_rates_central;
+
+    /// Writes `name` as a chunked f64 dataset of `shape`.
+    fn put(file: &hdf5::File, name: &str, shape: &[usize], values: &[f64]) {
+        let chunk: Vec<usize> = shape.iter().map(|&d| d.clamp(1, 1000)).collect();
+        let ds = file
+            .new_dataset::<f64>()
+            .chunk(chunk)
+            .shape(shape)
+            .create(name)
+            .unwrap();
+        ds.write_raw(values).unwrap();
+    }
+
+    /// The ground truth as it was read before it streamed: both datasets whole.
+    fn gt_whole(path: &Path) -> Result<Vec<GtSample>> {
+        let file = open(path)?;
+        let pose = file.dataset(POSE)?.read_raw::<f64>()?;
+        let ts = file.dataset(POSE_TS)?.read_raw::<f64>()?;
+        let (mats, _) = pose.as_chunks::<16>();
+        let poses: Vec<(f64, Mat3)> = mats
+            .iter()
+            .zip(ts)
+            .map(|(m, t)| {
+                let r = [[m[0], m[1], m[2]], [m[4], m[5], m[6]], [m[8], m[9], m[10]]];
+                (t, Mat3(r))
+            })
+            .collect();
+        yaw_rates_central(&poses).map_err(|e| anyhow!("{}: {e}", path.display()))
+    }
+
+    fn gyro_whole(path: &Path) -> Result<Vec<GyroSample>> {
+        let file = open(path)?;
+        let imu = file.dataset(IMU)?.read_raw::<f64>()?;
+        let ts = file.dataset(IMU_TS)?.read_raw::<f64>()?;
+        let (rows, _) = imu.as_chunks::<6>();
+        Ok(rows
+            .iter()
+            .zip(ts)
+            .map(|(&[_, _, _, wx, wy, wz], t_s)| GyroSample { t_s, wx, wy, wz })
+            .collect())
+    }
+
+    fn gt_streamed(path: &Path) -> Result<Vec<GtSample>> {
+        let mut r = PoseRates::open(path)?;
+        rates::collect(|out| r.next_chunk(out))
+    }
+
+    #[test]
+    fn slices_read_what_the_whole_datasets_gave() {
+        let dir = tempfile::tempdir().unwrap();
+        // Several slices of rows each, and a last one that is not full.
+        let (k, n) = (2 * ROWS_PER_READ / 4 + 777, 2 * ROWS_PER_READ + 555);
+        let yaw = |i: usize| (i as f64 * 0.002).sin() + 0.1 * (i as f64 * 0.37).cos();
+        let mut pose = Vec::with_capacity(k * 16);
+        for i in 0..k {
+            let (s, c) = yaw(i).sin_cos();
+            let tilt = 0.01 * (i as f64 * 0.1).sin();
+            pose.extend([
+                c, tilt, s, 1.0, 0.0, 1.0, 0.0, 2.0, -s, 0.0, c, 3.0, 0.0, 0.0, 0.0, 1.0,
+            ]);
+        }
+        let mut ts: Vec<f64> = (0..k).map(|i| 1.5e9 + i as f64 * 1e-3).collect();
+        let imu: Vec<f64> = (0..n * 6).map(|i| (i as f64 * 0.013).sin()).collect();
+        let imu_ts: Vec<f64> = (0..n).map(|i| i as f64 * 5e-3).collect();
+        for case in ["in order", "time going back"] {
+            if case == "time going back" {
+                ts[ROWS_PER_READ / 4 + 3] -= 1.0;
+            }
+            let path = dir.path().join("gt.hdf5");
+            let file = hdf5::File::create(&path).unwrap();
+            put(&file, POSE, &[k, 4, 4], &pose);
+            put(&file, POSE_TS, &[k], &ts);
+            put(&file, IMU, &[n, 6], &imu);
+            put(&file, IMU_TS, &[n], &imu_ts);
+            file.close().unwrap();
+            match (gt_streamed(&path), gt_whole(&path)) {
+                (Ok(a), Ok(b)) => {
+                    assert_eq!(case, "in order");
+                    assert_eq!(a.len(), k);
+                    assert!(a == b, "{case}: samples differ");
+                }
+                (Err(a), Err(b)) => {
+                    assert_eq!(case, "time going back");
+                    assert_eq!(format!("{a:#}"), format!("{b:#}"), "{case}");
+                }
+                (a, b) => panic!(
+                    "{case}: {:?} vs {:?}",
+                    a.map(|v| v.len()),
+                    b.map(|v| v.len())
+                ),
+            }
+            let mut r = ImuRates::open(&path).unwrap();
+            let streamed = rates::collect(|out| r.next_chunk(out)).unwrap();
+            assert_eq!(streamed.len(), n);
+            assert!(
+                streamed == gyro_whole(&path).unwrap(),
+                "{case}: gyro differs"
+            );
+        }
+    }
 }

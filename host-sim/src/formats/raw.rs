@@ -23,7 +23,7 @@ use core_nostd::evt::{
     DecodeStats, EncodeError, Evt21Decoder, Evt2Decoder, Evt3Decoder, Evt3Encoder, StreamDecoder,
 };
 
-use super::{Format, HostEvent, Recording};
+use super::{Event64, Format, Recording};
 
 /// What a `.raw` header says.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -275,13 +275,13 @@ impl<R: Read> RawEvents<R> {
     /// # Errors
     /// When the file cannot be read, or the stream is truncated or malformed (undefined word
     /// types, no TIME_HIGH): the message names the file and the byte offset.
-    pub fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
+    pub fn next_chunk(&mut self, out: &mut Vec<Event64>) -> Result<bool> {
         if self.done {
             return Ok(false);
         }
         let offset = self.time_offset_us;
         let mut sink = |e: core_nostd::event::Event64| {
-            out.push(HostEvent {
+            out.push(Event64 {
                 t_us: e.t_us.wrapping_add(offset),
                 x: e.x,
                 y: e.y,
@@ -424,7 +424,7 @@ impl<'w, W: Write> Evt3Writer<'w, W> {
     /// # Errors
     /// When an event cannot be encoded (the message names its index) or the file cannot be
     /// written.
-    pub fn push(&mut self, events: &[HostEvent]) -> Result<()> {
+    pub fn push(&mut self, events: &[Event64]) -> Result<()> {
         for e in events {
             let i = self.index;
             let mut enc = match self.enc.take() {
@@ -442,7 +442,7 @@ impl<'w, W: Write> Evt3Writer<'w, W> {
                 );
             }
             let bytes = &mut self.bytes;
-            let pushed = enc.push((*e).into(), |wd| bytes.extend_from_slice(&wd.to_le_bytes()));
+            let pushed = enc.push(*e, |wd| bytes.extend_from_slice(&wd.to_le_bytes()));
             self.enc = Some(enc);
             pushed.map_err(|err| match err {
                 EncodeError::TimeBackwards { t_us, previous_us } => anyhow::anyhow!(
@@ -491,12 +491,12 @@ impl<'w, W: Write> Evt3Writer<'w, W> {
 /// # Errors
 /// When an event cannot be encoded (the message names its index) or the file cannot be written.
 pub fn write_evt3(
-    events: &[HostEvent],
+    events: &[Event64],
     width: Option<u16>,
     height: Option<u16>,
     out: &Path,
 ) -> Result<()> {
-    let extent = |f: fn(&HostEvent) -> u16| {
+    let extent = |f: fn(&Event64) -> u16| {
         events
             .iter()
             .map(f)

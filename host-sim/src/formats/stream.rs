@@ -16,13 +16,13 @@ use super::meta::Needs;
 use super::mvsec::MvsecEvents;
 use super::raw::RawEvents;
 use super::text::EventLines;
-use super::{csv, ecd, Format, GyroSample, HostEvent, Intrinsics};
+use super::{csv, ecd, Event64, Format, GyroSample, Intrinsics};
 
 /// Events a text reader appends per chunk (the binary formats give one packet or one block of
 /// words per chunk, at most about 800 k events).
 pub const CHUNK_EVENTS: usize = 1 << 16;
 
-/// What the file (and, after [`super::meta::complete_from_folder`], its folder) says about the
+/// What the file (and, after [`EventReader::complete_from_folder`], its folder) says about the
 /// sensor, without the events.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RecordingInfo {
@@ -157,7 +157,7 @@ impl EventReader {
     /// # Errors
     /// When the file cannot be read or is malformed or truncated (the message names the file
     /// and the byte offset).
-    pub fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
+    pub fn next_chunk(&mut self, out: &mut Vec<Event64>) -> Result<bool> {
         out.clear();
         loop {
             let more = match &mut self.source {
@@ -190,29 +190,29 @@ pub trait EventChunks {
     ///
     /// # Errors
     /// When the input cannot be read or is malformed.
-    fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool>;
+    fn next_chunk(&mut self, out: &mut Vec<Event64>) -> Result<bool>;
 }
 
 impl EventChunks for EventReader {
-    fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
+    fn next_chunk(&mut self, out: &mut Vec<Event64>) -> Result<bool> {
         Self::next_chunk(self, out)
     }
 }
 
 /// Events held in memory, handed out a chunk of [`CHUNK_EVENTS`] at a time.
 pub struct EventsInMemory<'a> {
-    events: &'a [HostEvent],
+    events: &'a [Event64],
 }
 
 impl<'a> EventsInMemory<'a> {
     /// A source over `events`.
-    pub fn new(events: &'a [HostEvent]) -> Self {
+    pub fn new(events: &'a [Event64]) -> Self {
         Self { events }
     }
 }
 
 impl EventChunks for EventsInMemory<'_> {
-    fn next_chunk(&mut self, out: &mut Vec<HostEvent>) -> Result<bool> {
+    fn next_chunk(&mut self, out: &mut Vec<Event64>) -> Result<bool> {
         out.clear();
         let n = self.events.len().min(CHUNK_EVENTS);
         let (head, rest) = self.events.split_at(n);

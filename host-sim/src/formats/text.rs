@@ -5,7 +5,7 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Error};
 
-use super::HostEvent;
+use super::Event64;
 
 /// What the first meaningful line of a text file looks like.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -248,7 +248,7 @@ fn event_of<'l>(
     f: impl Iterator<Item = &'l [u8]>,
     cols: &Columns,
     time: fn(&[u8]) -> Option<u64>,
-) -> Option<HostEvent> {
+) -> Option<Event64> {
     let mut fields: [&[u8]; 4] = [&[]; 4];
     let mut n = 0;
     for field in f {
@@ -263,7 +263,7 @@ fn event_of<'l>(
     let x = parse_u16(fields.get(cx)?)?;
     let y = parse_u16(fields.get(cy)?)?;
     let on = parse_polarity(fields.get(cp)?)?;
-    Some(HostEvent { t_us, x, y, on })
+    Some(Event64 { t_us, x, y, on })
 }
 
 /// What an event-line file looks like: the separator, the time parser, whether a CSV header
@@ -318,7 +318,7 @@ impl<R: std::io::Read> EventLines<R> {
 
     /// Appends up to `max` events to `out`; returns `false` once the input is exhausted and
     /// nothing was appended.
-    pub fn next_chunk(&mut self, out: &mut Vec<HostEvent>, max: usize) -> anyhow::Result<bool> {
+    pub fn next_chunk(&mut self, out: &mut Vec<Event64>, max: usize) -> anyhow::Result<bool> {
         let start_len = out.len();
         while out.len() - start_len < max {
             let rest = self.buf.get(self.pos..).unwrap_or_default();

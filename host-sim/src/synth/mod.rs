@@ -49,7 +49,7 @@ pub const GENERATOR: &str = concat!("host-sim synth ", env!("CARGO_PKG_VERSION")
 
 /// The events of a sequence: `t_us` from the start of the sequence, pixel, polarity (the
 /// host's event type, as read from files).
-pub use crate::formats::HostEvent as Event;
+pub use crate::formats::Event64 as Event;
 
 /// Everything that defines a sequence. Defaults: DAVIS346, urban texture, sinusoidal yaw, 4 s,
 /// seed 1.

@@ -12,11 +12,11 @@
 //!   the times in `schedule.bin` (see [`paced`]), so a live run sees the recording's event
 //!   rate, bursts included, instead of a flood.
 //!
-//! Arguments (semihosting command line): `--input spi|file`, `--bytes N` (stream length in
-//! the flash), `--width W --height H` (sensor), `--layout dense|paper-boxes`, `--stride S`,
-//! `--window X0:Y0:W:H` (dense window; default: the whole sensor), `--focal-bits F --cx-bits C`
-//! (intrinsics as U16F16 bits, px), `--period-us P` (default 1000), `--live`, `--paced`,
-//! `--link-bps B` (link rate of a paced run, bytes/s; 0 = unlimited),
+//! Arguments (semihosting command line): `--settings HEX` (required: the run's settings as
+//! the hex of their configuration payload, `docs/wire-formats.md`, which `host-sim aer-stream`
+//! prints for the flags of `host-sim run`: the board decodes them with the code that reads a
+//! configuration frame), `--input spi|file`, `--bytes N` (stream length in the flash),
+//! `--live`, `--paced`, `--link-bps B` (link rate of a paced run, bytes/s; 0 = unlimited),
 //! `--icount-shift N` (0..=3, the `-icount shift` QEMU runs with: 2^N ns per instruction;
 //! sets the instruction counter's scale).
 
@@ -29,14 +29,14 @@ pub mod time;
 use core::fmt::Write as _;
 use core::mem::MaybeUninit;
 
-use core_nostd::aer::config::{LayoutChoice, StreamConfig};
-use core_nostd::fixed::types::U16F16;
+use core_nostd::aer::config::CONFIG_BYTES;
+use core_nostd::network::Cell;
+use core_nostd::settings::Settings;
 use core_nostd::unit::Kernel;
 use defmt_semihosting as _;
 use static_cell::StaticCell;
 
 use crate::app::configured::{self, CellStore, Exit};
-use crate::app::process::Cell;
 use crate::app::processing::Clock;
 use crate::app::{self, ByteSource, CostMeter, Overload, SourceError};
 use time::SysTickMeter;
@@ -63,22 +63,12 @@ mod exit {
 }
 
 /// Run configuration from the command line.
-#[derive(Clone, Copy, Debug, defmt::Format)]
+#[derive(Clone, Copy, Debug)]
 struct Config {
     spi: bool,
     bytes: u32,
-    width: u16,
-    height: u16,
-    stride: u16,
-    boxes: bool,
-    window: Option<(u16, u16, u16, u16)>,
-    /// Focal length, U16F16 bits (px).
-    focal_bits: u32,
-    /// Principal point column, U16F16 bits (px).
-    cx_bits: u32,
-    /// Principal point row, U16F16 bits (px); `None`: the sensor's centre.
-    cy_bits: Option<u32>,
-    period_us: u32,
+    /// What the pipeline runs (a configuration frame in the stream can change it).
+    settings: Settings,
     live: bool,
     paced: bool,
     /// Link rate of a paced run, bytes per second (0 = unlimited).
@@ -86,32 +76,31 @@ struct Config {
     icount_shift: u8,
 }
 
+/// Decodes `hex` (two digits per byte) into `out`; returns the byte count.
+fn from_hex(hex: &str, out: &mut [u8]) -> Option<usize> {
+    let digits = hex.as_bytes();
+    if !digits.len().is_multiple_of(2) || digits.len() / 2 > out.len() {
+        return None;
+    }
+    for (pair, byte) in digits.chunks_exact(2).zip(out.iter_mut()) {
+        let s = core::str::from_utf8(pair).ok()?;
+        *byte = u8::from_str_radix(s, 16).ok()?;
+    }
+    Some(digits.len() / 2)
+}
+
 impl Config {
     fn parse() -> Result<Self, &'static str> {
-        let mut c = Config {
-            spi: true,
-            bytes: 0,
-            width: 346,
-            height: 260,
-            stride: 2,
-            boxes: false,
-            window: None,
-            focal_bits: 0,
-            cx_bits: 0,
-            cy_bits: None,
-            period_us: 1_000,
-            live: false,
-            paced: false,
-            link_bps: 0,
-            icount_shift: 0,
-        };
+        let (mut spi, mut bytes, mut live, mut paced, mut link_bps, mut icount_shift) =
+            (true, 0, false, false, 0, 0);
+        let mut settings = None;
         let mut key: Option<heapless::String<16>> = None;
         let mut err = None;
         host::for_each_arg(|a| {
             let Some(k) = key.take() else {
                 match a {
-                    "--live" => c.live = true,
-                    "--paced" => c.paced = true,
+                    "--live" => live = true,
+                    "--paced" => paced = true,
                     _ => key = heapless::String::try_from(a).ok(),
                 }
                 return;
@@ -119,71 +108,42 @@ impl Config {
             let num = |s: &str| s.parse::<u32>().ok();
             let ok = match k.as_str() {
                 "--input" => {
-                    c.spi = a == "spi";
+                    spi = a == "spi";
                     a == "spi" || a == "file"
                 }
-                "--bytes" => num(a).map(|v| c.bytes = v).is_some(),
-                "--width" => num(a).map(|v| c.width = v as u16).is_some(),
-                "--height" => num(a).map(|v| c.height = v as u16).is_some(),
-                "--stride" => num(a).map(|v| c.stride = v as u16).is_some(),
-                "--layout" => {
-                    c.boxes = a == "paper-boxes";
-                    a == "dense" || a == "paper-boxes"
+                "--bytes" => num(a).map(|v| bytes = v).is_some(),
+                "--settings" => {
+                    let mut payload = [0u8; CONFIG_BYTES];
+                    settings = from_hex(a, &mut payload)
+                        .and_then(|n| Settings::parse(payload.get(..n)?).ok());
+                    settings.is_some()
                 }
-                "--focal-bits" => num(a).map(|v| c.focal_bits = v).is_some(),
-                "--cx-bits" => num(a).map(|v| c.cx_bits = v).is_some(),
-                "--cy-bits" => num(a).map(|v| c.cy_bits = Some(v)).is_some(),
-                "--link-bps" => num(a).map(|v| c.link_bps = v).is_some(),
+                "--link-bps" => num(a).map(|v| link_bps = v).is_some(),
                 "--icount-shift" => num(a)
                     .filter(|v| *v <= time::MAX_ICOUNT_SHIFT)
-                    .map(|v| c.icount_shift = v as u8)
+                    .map(|v| icount_shift = v as u8)
                     .is_some(),
-                "--period-us" => num(a).filter(|v| *v > 0).map(|v| c.period_us = v).is_some(),
-                "--window" => {
-                    let mut it = a.split(':').filter_map(num);
-                    match (it.next(), it.next(), it.next(), it.next()) {
-                        (Some(x), Some(y), Some(w), Some(h)) => {
-                            c.window = Some((x as u16, y as u16, w as u16, h as u16));
-                            true
-                        }
-                        _ => false,
-                    }
-                }
                 _ => false,
             };
             if !ok {
                 err = Some("bad argument");
             }
         });
-        if c.focal_bits == 0 {
-            err = Some("--focal-bits is required");
+        if let Some(e) = err {
+            return Err(e);
         }
-        match err {
-            Some(e) => Err(e),
-            None => Ok(c),
-        }
-    }
-
-    /// The configuration the command line gives (a configuration frame in the stream can
-    /// change it).
-    fn stream(&self) -> StreamConfig {
-        StreamConfig {
-            width: self.width,
-            height: self.height,
-            focal_px: U16F16::from_bits(self.focal_bits),
-            cx: U16F16::from_bits(self.cx_bits),
-            cy: U16F16::from_bits(
-                self.cy_bits
-                    .unwrap_or(u32::from(self.height.saturating_sub(1)) << 15),
-            ),
-            layout: match (self.boxes, self.window) {
-                (true, _) => LayoutChoice::PaperBoxes,
-                (false, None) => LayoutChoice::Dense,
-                (false, Some((x0, y0, w, h))) => LayoutChoice::Window { x0, y0, w, h },
-            },
-            stride: self.stride,
-            period_us: self.period_us,
-        }
+        let Some(settings) = settings else {
+            return Err("--settings is required");
+        };
+        Ok(Config {
+            spi,
+            bytes,
+            settings,
+            live,
+            paced,
+            link_bps,
+            icount_shift,
+        })
     }
 }
 
@@ -226,7 +186,7 @@ async fn main_task(cfg: Config) {
     } else {
         Clock::EventTimeOnly
     };
-    let mut stream = cfg.stream();
+    let mut stream = cfg.settings;
     let mut seq = 0u8;
     loop {
         let run = configured::run::<_, SysTickMeter>(
@@ -241,7 +201,7 @@ async fn main_task(cfg: Config) {
             }
         }
     }
-    let needed = configured::cells_needed(&stream).unwrap_or(0);
+    let needed = stream.storage().map_or(0, |n| n.cells);
     sink.flush();
     let s = app::stats();
     let per_event = if s.events == 0 {
@@ -308,7 +268,14 @@ pub fn main() -> ! {
             quit(exit::CONFIG)
         }
     };
-    defmt::info!("qemu board: {}", cfg);
+    defmt::info!(
+        "qemu board: {} x {} px, spi={}, live={}, paced={}",
+        cfg.settings.width,
+        cfg.settings.height,
+        cfg.spi,
+        cfg.live,
+        cfg.paced
+    );
     time::init(cp.SYST, cfg.icount_shift);
     static SOURCE: StaticCell<paced::Paced<Source>> = StaticCell::new();
     let source = if cfg.spi {

@@ -5,10 +5,10 @@
 
 use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
-use core_nostd::layout::{Dense, Layout, PaperBoxes};
-use core_nostd::network::{active_words, Cell, InputFilter, Network, UnitPair};
-use core_nostd::pipeline::{self, Pipeline};
-use core_nostd::readout::calibrated::Calibration;
+use core_nostd::layout::{Dense, Layout};
+use core_nostd::network::{active_words, Cell, InputFilter, NetState, Network, UnitPair};
+use core_nostd::pipeline::Pipeline;
+use core_nostd::settings::{LayoutChoice, Settings};
 use core_nostd::readout::normalized::Normalized;
 use core_nostd::unit::Kernel;
 use libfuzzer_sys::fuzz_target;
@@ -32,16 +32,18 @@ fn events(data: &[u8]) -> impl Iterator<Item = Event> + '_ {
     })
 }
 
-fn calibrated<L: Layout>(layout: L, data: &[u8]) {
+/// The product's pipeline with `layout` on a 64 x 24 (or 240 x 30) sensor, f = 60 px.
+fn calibrated(width: u16, height: u16, layout: LayoutChoice, data: &[u8]) {
     let k = Kernel::DEFAULT;
-    let mut cells = vec![Cell::default(); layout.cell_count()];
-    let cal = Calibration::for_units(
-        U16F16::from_num(60),
-        U16F16::from_num(31.5),
-        U16F16::from_num(11.5),
-        layout.unit_count(),
-    );
-    let Ok(mut p) = pipeline::calibrated(&k, layout, &mut cells, cal) else {
+    let settings = Settings {
+        layout,
+        ..Settings::for_sensor(width, height, U16F16::from_num(60))
+    };
+    let Ok(needs) = settings.storage() else {
+        return;
+    };
+    let mut cells = vec![Cell::default(); needs.cells];
+    let Ok(mut p) = settings.build(&k, NetState::cells(&mut cells)) else {
         return;
     };
     let mut check = |s: core_nostd::readout::YawSample| {
@@ -58,10 +60,8 @@ fn calibrated<L: Layout>(layout: L, data: &[u8]) {
 }
 
 fuzz_target!(|data: &[u8]| {
-    calibrated(Dense::new(64, 24, 2).expect("layout"), data);
-    if let Some(l) = PaperBoxes::with_stride(240, 30, 2, 1) {
-        calibrated(l, data);
-    }
+    calibrated(64, 24, LayoutChoice::Dense, data);
+    calibrated(240, 30, LayoutChoice::PaperBoxes, data);
     // The spiking network with the paper's readout.
     let k = Kernel::DEFAULT;
     let layout = Dense::new(64, 24, 2).expect("layout");
@@ -71,14 +71,7 @@ fuzz_target!(|data: &[u8]| {
         vec![UnitPair::default(); n],
         vec![0u32; active_words(n)],
     );
-    let Ok(net) = Network::new(
-        &k,
-        layout,
-        &mut cells,
-        &mut units,
-        &mut active,
-        InputFilter::All,
-    ) else {
+    let Ok(net) = Network::new(&k, layout, NetState::spiking(&mut cells, &mut units, &mut active), InputFilter::All) else {
         return;
     };
     let mut p = Pipeline::new(net, Normalized::new(10_000, 1_000), 1_000);

@@ -1,0 +1,461 @@
+//! A run's settings: everything that decides its output, in one value, and the pipeline they
+//! build from caller-provided storage.
+//!
+//! `host-sim run`, the QEMU board and the STM32 boards each resolve a [`Settings`] (from flags
+//! and the recording, from a configuration frame, from the build's defaults) and call
+//! [`Settings::build`]; nothing else about how a pipeline is put together lives outside this
+//! module and [`crate::pipeline`]. The configuration frame (`crate::aer::config`) is the wire
+//! form of the same value.
+//!
+//! ```text
+//! Settings ──layout()──> SensorLayout (Dense | PaperBoxes); storage() ──> what to allocate
+//!          ──build(kernel, NetState)──> Built: one Pipeline<layout, readout>
+//! ```
+
+use fixed::types::U16F16;
+
+use crate::event::Event;
+use crate::layout::{Dense, Layout, PaperBoxes, UnitMask};
+use crate::network::{active_words, InputFilter, NetError, NetState, NetStats, Network};
+use crate::pipeline::{Pipeline, ONSET_GAP_US};
+use crate::readout::calibrated::{default_tau_a_us, Calibrated, Calibration};
+use crate::readout::normalized::Normalized;
+use crate::readout::{Readout, YawSample};
+use crate::unit::Kernel;
+
+/// Largest sensor side (px): the 11-bit addresses of EVT 3.0 and of the AER stream.
+pub const MAX_SENSOR_SIDE: u16 = 2048;
+
+/// Time constant of the paper's normalized readout (µs): model.md's 10 ms.
+pub const NORMALIZED_TAU_A_US: u32 = 10_000;
+
+/// Longest readout time constant a run may ask for (µs).
+pub const MAX_TAU_A_US: u32 = 1_000_000;
+
+/// Which network runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LayoutChoice {
+    /// Dense over the whole sensor.
+    Dense,
+    /// The paper's two 20 x 20 boxes (placement [`PaperBoxes::DEFAULT_SEED`]).
+    PaperBoxes,
+    /// Dense over a window of the sensor.
+    Window {
+        /// First column.
+        x0: u16,
+        /// First row.
+        y0: u16,
+        /// Columns.
+        w: u16,
+        /// Rows.
+        h: u16,
+    },
+}
+
+/// Which readout turns the network's output into samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReadoutChoice {
+    /// Yaw rate in rad/s from the bursts' time codes and the camera geometry (the product's
+    /// readout; needs cells only).
+    Calibrated,
+    /// The paper's leaky integrator of spikes (needs the spiking units; unscaled).
+    Normalized,
+}
+
+/// Everything that decides a run's output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Settings {
+    /// Sensor width (px, 1..=[`MAX_SENSOR_SIDE`]).
+    pub width: u16,
+    /// Sensor height (px, 1..=[`MAX_SENSOR_SIDE`]).
+    pub height: u16,
+    /// Focal length (px, > 0).
+    pub focal_px: U16F16,
+    /// Principal point column (px).
+    pub cx: U16F16,
+    /// Principal point row (px).
+    pub cy: U16F16,
+    /// The network's layout.
+    pub layout: LayoutChoice,
+    /// FAC-to-TRG distance (px, >= 1).
+    pub stride: u16,
+    /// Output period (µs, >= 1; 1000 = 1 kHz).
+    pub period_us: u32,
+    /// The readout.
+    pub readout: ReadoutChoice,
+    /// Readout time constant `tau_A` (µs, 1..=[`MAX_TAU_A_US`]); `None` = the readout's
+    /// default ([`Settings::tau_a_us`]).
+    pub tau_a_us: Option<u32>,
+}
+
+/// Why settings cannot run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SettingsError {
+    /// A sensor side is 0 or above [`MAX_SENSOR_SIDE`].
+    Sensor,
+    /// The focal length is 0.
+    Focal,
+    /// The output period is 0.
+    Period,
+    /// `tau_A` is 0 or above [`MAX_TAU_A_US`].
+    TauA,
+    /// The layout (with its stride) does not fit the sensor.
+    Layout,
+    /// The storage given is smaller than the layout needs.
+    Storage(NetError),
+}
+
+impl core::fmt::Display for SettingsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Sensor => write!(f, "sensor sides must be 1 to {MAX_SENSOR_SIDE} px"),
+            Self::Focal => write!(f, "the focal length must be above 0"),
+            Self::Period => write!(f, "the output period must be at least 1 µs"),
+            Self::TauA => write!(f, "tau_A must be 1 µs to {MAX_TAU_A_US} µs"),
+            Self::Layout => write!(f, "the layout (with its stride) does not fit the sensor"),
+            Self::Storage(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+/// The principal point coordinate of a sensor side's centre: `(side - 1) / 2` px (exact in
+/// U16F16).
+pub const fn centre_px(side: u16) -> U16F16 {
+    U16F16::from_bits((side.saturating_sub(1) as u32) << 15)
+}
+
+impl Settings {
+    /// The defaults for a `width` x `height` sensor with focal length `focal_px`: principal
+    /// point at the centre, dense over the whole sensor, stride 2, 1 kHz, calibrated readout,
+    /// its default `tau_A`.
+    pub const fn for_sensor(width: u16, height: u16, focal_px: U16F16) -> Self {
+        Self {
+            width,
+            height,
+            focal_px,
+            cx: centre_px(width),
+            cy: centre_px(height),
+            layout: LayoutChoice::Dense,
+            stride: 2,
+            period_us: 1_000,
+            readout: ReadoutChoice::Calibrated,
+            tau_a_us: None,
+        }
+    }
+
+    /// The layout these settings run.
+    ///
+    /// # Errors
+    /// When a value is out of range or the layout does not fit the sensor.
+    pub fn layout(&self) -> Result<SensorLayout, SettingsError> {
+        let side_ok = |s: u16| (1..=MAX_SENSOR_SIDE).contains(&s);
+        if !side_ok(self.width) || !side_ok(self.height) {
+            return Err(SettingsError::Sensor);
+        }
+        if self.focal_px == U16F16::ZERO {
+            return Err(SettingsError::Focal);
+        }
+        if self.period_us == 0 {
+            return Err(SettingsError::Period);
+        }
+        if self.tau_a_us.is_some_and(|t| t == 0 || t > MAX_TAU_A_US) {
+            return Err(SettingsError::TauA);
+        }
+        let (w, h, s) = (self.width, self.height, self.stride);
+        let layout = match self.layout {
+            LayoutChoice::Dense => Dense::new(w, h, s).map(SensorLayout::Dense),
+            LayoutChoice::Window {
+                x0,
+                y0,
+                w: ww,
+                h: wh,
+            } => Dense::window(w, h, x0, y0, ww, wh, s).map(SensorLayout::Dense),
+            LayoutChoice::PaperBoxes => {
+                PaperBoxes::with_stride(w, h, s, PaperBoxes::DEFAULT_SEED).map(SensorLayout::Boxes)
+            }
+        };
+        layout.ok_or(SettingsError::Layout)
+    }
+
+    /// Checks every value (as [`Settings::layout`] does).
+    ///
+    /// # Errors
+    /// As [`Settings::layout`].
+    pub fn validate(&self) -> Result<(), SettingsError> {
+        self.layout().map(|_| ())
+    }
+
+    /// The readout time constant for a layout of `units` units (µs): the one given, else
+    /// [`default_tau_a_us`] for the calibrated readout and [`NORMALIZED_TAU_A_US`] for the
+    /// normalized one.
+    pub const fn tau_a_us(&self, units: usize) -> u32 {
+        match (self.tau_a_us, self.readout) {
+            (Some(t), _) => t,
+            (None, ReadoutChoice::Calibrated) => default_tau_a_us(units),
+            (None, ReadoutChoice::Normalized) => NORMALIZED_TAU_A_US,
+        }
+    }
+
+    /// The storage a run needs.
+    ///
+    /// # Errors
+    /// As [`Settings::layout`].
+    pub fn storage(&self) -> Result<StorageNeeds, SettingsError> {
+        let cells = self.layout()?.cell_count();
+        Ok(match self.readout {
+            ReadoutChoice::Calibrated => StorageNeeds {
+                cells,
+                unit_pairs: 0,
+                active_words: 0,
+            },
+            ReadoutChoice::Normalized => StorageNeeds {
+                cells,
+                unit_pairs: cells,
+                active_words: active_words(cells),
+            },
+        })
+    }
+
+    /// The pipeline these settings describe, over `state` (at least [`Settings::storage`]).
+    ///
+    /// # Errors
+    /// When the settings do not validate or `state` is too small.
+    pub fn build<'a>(
+        &self,
+        kernel: &'a Kernel,
+        state: NetState<'a>,
+    ) -> Result<Built<'a>, SettingsError> {
+        let layout = self.layout()?;
+        let tau_a_us = self.tau_a_us(layout.unit_count());
+        Ok(match self.readout {
+            ReadoutChoice::Calibrated => {
+                let cal = Calibration {
+                    tau_a_us,
+                    period_us: self.period_us,
+                    ..Calibration::new(self.focal_px, self.cx, self.cy)
+                };
+                let readout = Calibrated::new(kernel, &layout, cal);
+                let filter = InputFilter::Onsets {
+                    gap_us: ONSET_GAP_US,
+                };
+                Built::Calibrated(OnLayout::new(
+                    kernel,
+                    layout,
+                    state,
+                    filter,
+                    readout,
+                    self.period_us,
+                )?)
+            }
+            ReadoutChoice::Normalized => {
+                let readout = Normalized::new(tau_a_us, self.period_us);
+                Built::Normalized(OnLayout::new(
+                    kernel,
+                    layout,
+                    state,
+                    InputFilter::All,
+                    readout,
+                    self.period_us,
+                )?)
+            }
+        })
+    }
+}
+
+/// What a run needs of the caller's memory (counts of [`crate::network::Cell`],
+/// [`crate::network::UnitPair`] and `u32` words).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StorageNeeds {
+    /// Cells (12 bytes each).
+    pub cells: usize,
+    /// Unit pairs (16 bytes each); 0 when the units do not run.
+    pub unit_pairs: usize,
+    /// Words of the active bitset; 0 when the units do not run.
+    pub active_words: usize,
+}
+
+/// The layouts [`Settings`] choose from.
+// One value per run, in place (no heap to box the boxes' placement table into).
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SensorLayout {
+    /// Dense, over the whole sensor or a window of it.
+    Dense(Dense),
+    /// The paper's boxes.
+    Boxes(PaperBoxes),
+}
+
+/// Calls `$e` with `$l` bound to the inner layout.
+macro_rules! each_layout {
+    ($s:expr, $l:ident => $e:expr) => {
+        match $s {
+            SensorLayout::Dense($l) => $e,
+            SensorLayout::Boxes($l) => $e,
+        }
+    };
+}
+
+impl Layout for SensorLayout {
+    #[inline]
+    fn cell_count(&self) -> usize {
+        each_layout!(self, l => l.cell_count())
+    }
+    #[inline]
+    fn unit_count(&self) -> usize {
+        each_layout!(self, l => l.unit_count())
+    }
+    #[inline]
+    fn stride(&self) -> u16 {
+        each_layout!(self, l => l.stride())
+    }
+    #[inline]
+    fn sensor(&self) -> (u16, u16) {
+        each_layout!(self, l => l.sensor())
+    }
+    #[inline]
+    fn cell(&self, x: u16, y: u16) -> Option<usize> {
+        each_layout!(self, l => l.cell(x, y))
+    }
+    #[inline]
+    fn units(&self, cell: usize) -> UnitMask {
+        each_layout!(self, l => l.units(cell))
+    }
+    #[inline]
+    fn pixel(&self, cell: usize) -> (u16, u16) {
+        each_layout!(self, l => l.pixel(cell))
+    }
+    #[inline]
+    fn units_at(&self, x: u16, y: u16, cell: usize) -> UnitMask {
+        each_layout!(self, l => l.units_at(x, y, cell))
+    }
+    #[inline]
+    fn neighbor(&self, x: u16, y: u16, cell: usize, dx: i32) -> Option<usize> {
+        each_layout!(self, l => l.neighbor(x, y, cell, dx))
+    }
+}
+
+/// A pipeline built from [`Settings`]: one variant per readout, each over either layout
+/// (static dispatch: the per-event cost is two predictable branches, not a call through the
+/// layout on every pixel lookup).
+// One value per run, in place (no heap); the calibrated readout's histograms are most of it.
+#[allow(clippy::large_enum_variant)]
+pub enum Built<'a> {
+    /// The calibrated readout (rad/s).
+    Calibrated(OnLayout<'a, Calibrated>),
+    /// The paper's normalized readout (unscaled).
+    Normalized(OnLayout<'a, Normalized>),
+}
+
+/// A pipeline with readout `R` over one of the layouts [`Settings`] choose from.
+// One value per run, in place (no heap).
+#[allow(clippy::large_enum_variant)]
+pub enum OnLayout<'a, R: Readout> {
+    /// Dense, over the whole sensor or a window of it.
+    Dense(Pipeline<'a, Dense, R>),
+    /// The paper's boxes.
+    Boxes(Pipeline<'a, PaperBoxes, R>),
+}
+
+/// Calls `$e` with `$p` bound to the inner pipeline.
+macro_rules! each_layout_pipeline {
+    ($s:expr, $p:ident => $e:expr) => {
+        match $s {
+            OnLayout::Dense($p) => $e,
+            OnLayout::Boxes($p) => $e,
+        }
+    };
+}
+
+impl<'a, R: Readout> OnLayout<'a, R> {
+    /// The pipeline over `layout`, with `readout` and state in `state`.
+    #[inline(never)]
+    fn new(
+        kernel: &'a Kernel,
+        layout: SensorLayout,
+        state: NetState<'a>,
+        filter: InputFilter,
+        readout: R,
+        period_us: u32,
+    ) -> Result<Self, SettingsError> {
+        Ok(match layout {
+            SensorLayout::Dense(l) => {
+                let net = Network::new(kernel, l, state, filter).map_err(SettingsError::Storage)?;
+                OnLayout::Dense(Pipeline::new(net, readout, period_us))
+            }
+            SensorLayout::Boxes(l) => {
+                let net = Network::new(kernel, l, state, filter).map_err(SettingsError::Storage)?;
+                OnLayout::Boxes(Pipeline::new(net, readout, period_us))
+            }
+        })
+    }
+
+    /// Processes one event (see [`Pipeline::event`]).
+    #[inline]
+    pub fn event<F: FnMut(YawSample)>(&mut self, ev: Event, out: &mut F) {
+        each_layout_pipeline!(self, p => p.event(ev, out));
+    }
+
+    /// Moves the clock to `now_us` without an event (see [`Pipeline::poll`]).
+    pub fn poll<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
+        each_layout_pipeline!(self, p => p.poll(now_us, out));
+    }
+
+    /// The network's counters.
+    pub fn net_stats(&self) -> &NetStats {
+        each_layout_pipeline!(self, p => p.network().stats())
+    }
+
+    /// The readout.
+    pub fn readout(&self) -> &R {
+        each_layout_pipeline!(self, p => p.readout())
+    }
+
+    /// Samples produced.
+    pub fn samples(&self) -> u64 {
+        each_layout_pipeline!(self, p => p.samples)
+    }
+}
+
+/// Calls `$e` with `$p` bound to the [`OnLayout`] of each readout.
+macro_rules! each_pipeline {
+    ($s:expr, $p:ident => $e:expr) => {
+        match $s {
+            Built::Calibrated($p) => $e,
+            Built::Normalized($p) => $e,
+        }
+    };
+}
+
+impl Built<'_> {
+    /// Processes one event (see [`Pipeline::event`]).
+    #[inline]
+    pub fn event<F: FnMut(YawSample)>(&mut self, ev: Event, out: &mut F) {
+        each_pipeline!(self, p => p.event(ev, out));
+    }
+
+    /// Moves the clock to `now_us` without an event (see [`Pipeline::poll`]).
+    pub fn poll<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
+        each_pipeline!(self, p => p.poll(now_us, out));
+    }
+
+    /// The network's counters.
+    pub fn net_stats(&self) -> &NetStats {
+        each_pipeline!(self, p => p.net_stats())
+    }
+
+    /// What the readout consumed: bursts decoded (calibrated) or spikes (normalized).
+    pub fn outputs(&self) -> u64 {
+        match self {
+            Built::Calibrated(p) => p.readout().samples,
+            Built::Normalized(p) => {
+                let s = p.net_stats();
+                s.spikes_lr + s.spikes_rl
+            }
+        }
+    }
+
+    /// Samples produced.
+    pub fn samples(&self) -> u64 {
+        each_pipeline!(self, p => p.samples())
+    }
+}

@@ -1,0 +1,102 @@
+//! What `cargo xtask` and the QEMU system tests (`xtask/tests/qemu.rs`) share: running the
+//! host tool and the emulated firmware, and reading what they write.
+//!
+//! - [`qemu`]: a recording (or an AER stream) through the QEMU firmware, as `cargo xtask qemu`
+//!   runs it; the firmware's summary.
+//! - [`yaw`]: the yaw outputs (CSV rows, the sequence counters of `yaw.bin`).
+//!
+//! Nothing here knows the run's defaults: the flags of `host-sim run` go to `host-sim` as they
+//! are, and the firmware gets the settings `host-sim` prints for them.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{bail, Context, Result};
+
+pub mod qemu;
+pub mod yaw;
+
+/// The Cortex-M target of the firmware and of the no_std core.
+pub const TARGET: &str = "thumbv7em-none-eabihf";
+
+/// The workspace root.
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."))
+}
+
+/// `cargo` (the one running this, when there is one), in the workspace root.
+pub fn cargo() -> Command {
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.current_dir(root());
+    c
+}
+
+/// Runs `cmd` (its output to the terminal); fails unless it exits with 0.
+pub fn run(what: &str, mut cmd: Command) -> Result<()> {
+    eprintln!("xtask: {what}");
+    let status = cmd
+        .status()
+        .with_context(|| format!("cannot start: {what}"))?;
+    if !status.success() {
+        bail!("failed: {what} ({status})");
+    }
+    Ok(())
+}
+
+/// Runs `cmd` and returns its stdout; fails with its stderr unless it exits with 0.
+pub fn output(what: &str, mut cmd: Command) -> Result<String> {
+    eprintln!("xtask: {what}");
+    let out = cmd
+        .output()
+        .with_context(|| format!("cannot start: {what}"))?;
+    if !out.status.success() {
+        bail!(
+            "failed: {what} ({}): {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+/// `host-sim` through cargo (release).
+pub fn host_sim() -> Command {
+    let mut c = cargo();
+    c.args(["run", "--quiet", "--release", "-p", "host-sim", "--"]);
+    c
+}
+
+/// `host-sim run INPUT --out OUT FLAGS..`: what the firmware's output is compared with.
+pub fn host_sim_run<S: AsRef<std::ffi::OsStr>>(
+    input: &Path,
+    flags: &[S],
+    out: &Path,
+) -> Result<()> {
+    let mut c = host_sim();
+    c.arg("run").arg(input).args(flags).arg("--out").arg(out);
+    run(&format!("host-sim run {}", input.display()), c)
+}
+
+/// Each firmware board's own target dir (the boards share the target triple and the binary
+/// name, so one dir per board keeps their ELFs apart): `firmware/target/<board>`.
+pub fn firmware_target_dir(board: &str) -> PathBuf {
+    root().join("firmware/target").join(board)
+}
+
+/// The firmware's ELF for a board (`qemu`, `stm32f405`, `stm32h743`):
+/// `firmware/target/<board>/thumbv7em-none-eabihf/release/tde-firmware`.
+pub fn firmware_elf(board: &str) -> PathBuf {
+    firmware_target_dir(board)
+        .join(TARGET)
+        .join("release")
+        .join("tde-firmware")
+}
+
+/// The value of `k` in a line of `key=value` fields.
+pub fn field<'a>(line: &'a str, k: &str) -> Option<&'a str> {
+    line.split_whitespace()
+        .find_map(|kv| kv.strip_prefix(k)?.strip_prefix('='))
+}
