@@ -14,6 +14,7 @@ use core_nostd::aer::yaw::YawFrame;
 use core_nostd::flags;
 use core_nostd::readout::YawSample;
 use core_nostd::settings::{Built, Settings};
+use core_nostd::time::EventTime;
 use embassy_futures::select::{select, Either};
 use embassy_time::{Duration, Instant, Timer};
 use fixed::types::I16F16;
@@ -177,7 +178,8 @@ fn clock_tick<K: YawSink>(
         None => {
             // No event yet: stale samples on the MCU clock, yaw rate 0.
             let now_us = (Instant::now() - start).as_micros() as u32;
-            while now_us.wrapping_sub(*idle_tick) < 1 << 31 {
+            let now = EventTime::from_us(now_us);
+            while now.since(EventTime::from_us(*idle_tick)).is_some() {
                 out.emit(
                     YawSample {
                         t_us: *idle_tick,

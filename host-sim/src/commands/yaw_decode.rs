@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use core_nostd::aer::yaw::{YawDecoder, YawFrame, YawStats};
+use core_nostd::time::EventTime;
 
 use crate::output::write_atomically;
 
@@ -59,14 +60,10 @@ impl Unwrap {
     fn next(&mut self, t_us: u32) -> u64 {
         let t = match self.last {
             None => u64::from(t_us),
-            Some((prev, e)) => {
-                let d = t_us.wrapping_sub(prev);
-                if d < 1 << 31 {
-                    e + u64::from(d)
-                } else {
-                    e.saturating_sub(u64::from(prev.wrapping_sub(t_us)))
-                }
-            }
+            Some((prev, e)) => match EventTime::from_us(t_us).since(EventTime::from_us(prev)) {
+                Some(d) => e + u64::from(d),
+                None => e.saturating_sub(u64::from(prev.wrapping_sub(t_us))),
+            },
         };
         self.last = Some((t_us, t));
         t
