@@ -1,10 +1,12 @@
 //! Cost of the fixed-point core per event: a FAC-only event, a TRG event that starts a burst
-//! (including emitting the whole burst), and one event of the dense network.
+//! (including emitting the whole burst) with the stand-alone unit's Newton engine and with the
+//! network's burst engine (per spike: the burst's spikes, emitted whole or one output period at a
+//! time), and one event of the dense network.
 
 use core_nostd::event::Event;
 use core_nostd::layout::{Dense, Layout};
 use core_nostd::network::{active_words, Cell, InputFilter, NetState, Network, Spike, UnitPair};
-use core_nostd::unit::{Kernel, Tde};
+use core_nostd::unit::{fine, reported_by, BurstUnit, Kernel, Tde, WideTrace};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 
 fn unit_events(c: &mut Criterion) {
@@ -50,6 +52,50 @@ fn unit_events(c: &mut Criterion) {
     g.finish();
 }
 
+fn burst_engine(c: &mut Criterion) {
+    let k = Kernel::DEFAULT;
+    // A TRG event after a FAC trace of 0.25..1.25 (bursts of 20 to 130 spikes).
+    let drive = |i: u32| WideTrace((1 << 22) + (i % 64) * (1 << 18));
+    let spikes_per_burst = {
+        let mut u = BurstUnit::IDLE;
+        k.burst_input(&mut u, 0, drive(32));
+        k.burst_emit(&mut u, fine(1_000_000), |_| ())
+    };
+    let mut g = c.benchmark_group("burst_engine");
+    g.throughput(Throughput::Elements(u64::from(spikes_per_burst)));
+    let mut i = 0u32;
+    let mut spikes = 0u64;
+    g.bench_function("input_and_whole_burst", |b| {
+        b.iter(|| {
+            i = i.wrapping_add(1);
+            let mut u = BurstUnit::IDLE;
+            let t = i.wrapping_mul(1_000_000);
+            k.burst_input(&mut u, t, black_box(drive(32)));
+            spikes += u64::from(k.burst_emit(&mut u, fine(t.wrapping_add(1_000_000)), |s| {
+                black_box(s);
+            }));
+        })
+    });
+    // The same burst emitted one 1 ms tick at a time, as the network's clock does.
+    g.bench_function("input_and_burst_by_ticks", |b| {
+        b.iter(|| {
+            i = i.wrapping_add(1);
+            let mut u = BurstUnit::IDLE;
+            let t = i.wrapping_mul(1_000_000);
+            k.burst_input(&mut u, t, black_box(drive(32)));
+            let mut tick = t;
+            while u.pending() {
+                tick = tick.wrapping_add(1_000);
+                spikes += u64::from(k.burst_emit(&mut u, reported_by(tick), |s| {
+                    black_box(s);
+                }));
+            }
+        })
+    });
+    g.finish();
+    black_box(spikes);
+}
+
 fn network_events(c: &mut Criterion) {
     let k = Kernel::DEFAULT;
     let layout = Dense::new(346, 260, 2).unwrap();
@@ -91,5 +137,5 @@ fn network_events(c: &mut Criterion) {
     black_box(spikes);
 }
 
-criterion_group!(benches, unit_events, network_events);
+criterion_group!(benches, unit_events, burst_engine, network_events);
 criterion_main!(benches);

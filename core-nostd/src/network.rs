@@ -1,38 +1,45 @@
 //! The TDE network: events in; trigger records and spikes out; over a [`Layout`], with all state
 //! in caller-provided slices.
 //!
-//! State is kept per pixel in two slices: a [`Cell`] (8 bytes: the pixel's FAC trace and the
-//! time it refers to) and a [`UnitPair`] (16 bytes: the two units the pixel triggers). The unit
-//! slice is only needed by sinks that want spikes; the calibrated readout decodes bursts from
-//! their drives and runs with cells alone — 4 bytes per unit, where the spiking network takes
-//! 12. State is stored exactly as computed (see [`Trace`] for why 16-bit traces are not enough):
-//! the membrane word holds `u / theta` in U1F31, or, with the top bit set, the remaining
-//! refractory time in µs (bits 30..16) and its sub-µs lag (bits 15..0). The top bit of the
-//! stored FAC trace holds the polarity of the pixel's last event (for the onset filter). Which
-//! units a pixel has comes from the layout; state whose words are all zero is idle.
+//! State is kept per pixel in two slices: a [`Cell`] (12 bytes: the pixel's FAC traces and the
+//! time they refer to) and a [`UnitPair`] (48 bytes: the two units the pixel triggers, in the
+//! burst engine's form, see [`crate::unit::BurstUnit`]). The unit slice is only needed by sinks
+//! that want spikes; the calibrated readout decodes bursts from their drives and runs with cells
+//! alone. FAC traces are stored exactly as computed (see [`Trace`] for why 16 bits are not
+//! enough): as [`Trace`]s (saturating at 16) without units, as [`WideTrace`]s (saturating at
+//! 128: busy pixels of real sensors pass 16) when the units run. The top bit of the stored FAC
+//! trace holds the polarity of the pixel's last event (for the onset filter). Which units a
+//! pixel has comes from the layout.
 //!
 //! # What comes out
 //! - For every event that triggers units, one [`Trigger`]: the drive `w_T · I_F(t⁻)` each of
 //!   the pixel's two units receives, which is what its burst encodes (a burst from rest is a
 //!   monotone function of it: the sweep), and the pixel's own FAC trace after the event.
-//! - If the sink asks for them ([`NetSink::SPIKES`]), every spike of every unit. Units are
-//!   advanced lazily (on their next input) and by [`Network::tick`], which advances the cells
-//!   marked in the active bitset, so a spike is emitted at the latest at the first tick after it.
-//!   A sink that does not want spikes skips the membrane dynamics altogether.
+//! - If the sink asks for them ([`NetSink::SPIKES`]), every spike of every unit, each at the
+//!   whole µs nearest to its exact time. A TRG event computes where its unit's burst goes (the
+//!   next spike's place on the burst orbit); the spikes themselves come out lazily, in order:
+//!   those of a unit up to an event's time before that event acts on it, and all of them up to
+//!   `t` at [`Network::tick`]`(t)`, which visits only the cells marked in the active bitset (a
+//!   unit with a spike pending) and there only units with a spike due. Each spike costs one
+//!   table lookup; a cell whose units cannot spike again is not visited. A sink that does not
+//!   want spikes skips the units altogether.
+//! - A sink that can hold spikes for future outputs ([`NetSink::ahead_us`], the normalized
+//!   readout) gets them up to that far beyond the clock, a unit in a dense burst being visited
+//!   once per that span instead of once per tick; an event that changes a unit's burst takes
+//!   back its spikes given beyond the event ([`NetSink::retract`]). The spikes that stay are
+//!   exactly those of emission at the clock (tested).
 //!
 //! # Input filter
 //! [`InputFilter::Onsets`] passes only the first event of each same-polarity run at a pixel (or
 //! an event after `gap` without onset): one event per edge and pixel, which makes the drive an
 //! unbiased code of the edge's travel time (see the readout).
 
-use fixed::types::U1F31;
-
 use crate::event::Event;
 use crate::exp_table::{scale_q31, ExpDecay};
-use crate::layout::{Dir, Layout};
+use crate::layout::{Dir, Layout, UnitMask};
 use crate::params::{Trace, TAU_SLOW_US};
 use crate::time::EventTime;
-use crate::unit::{elapsed_us, Kernel, UnitState};
+use crate::unit::{elapsed_us, fine, reported_by, BurstUnit, FineTime, Kernel, WideTrace};
 
 /// With the onset filter, a same-polarity event starts a new edge for the slow units only when
 /// their last onset at the pixel is older than this (µs): a slow edge takes this long to pass a
@@ -48,9 +55,6 @@ static SLOW_DECAY: ExpDecay = ExpDecay::new(TAU_SLOW_US);
 fn decay_slow(i: Trace, dt_us: u32) -> Trace {
     Trace::from_bits(scale_q31(i.to_bits(), SLOW_DECAY.decay_bits(dt_us)))
 }
-
-/// Membrane word: top bit set = refractory (remaining µs in bits 30..16, lag in 15..0).
-const REFRACTORY: u32 = 1 << 31;
 
 /// Stored FAC trace: top bit = polarity of the pixel's last event (1 = ON).
 const POLARITY: u32 = 1 << 31;
@@ -68,26 +72,43 @@ pub struct Cell {
     i_slow: u32,
 }
 
-/// The two units a pixel triggers (left-to-right, right-to-left). 16 bytes.
+/// The two units a pixel triggers (left-to-right, right-to-left). 48 bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[repr(C)]
+#[repr(C, align(16))]
 pub struct UnitPair {
-    /// TRG traces ([`Trace`] bits).
-    i_trg: [u32; 2],
-    /// Membranes, see [`REFRACTORY`].
-    mem: [u32; 2],
+    units: [BurstUnit; 2],
 }
 
 impl UnitPair {
     /// A unit pair at rest (for static arrays).
     pub const DEFAULT: Self = Self {
-        i_trg: [0; 2],
-        mem: [0; 2],
+        units: [BurstUnit::IDLE; 2],
     };
 
     #[inline]
     fn is_live(&self) -> bool {
-        (self.i_trg[0] | self.i_trg[1] | self.mem[0] | self.mem[1]) != 0
+        self.units.iter().any(|u| !u.is_idle())
+    }
+
+    #[inline]
+    fn pending(&self) -> bool {
+        self.units.iter().any(BurstUnit::pending)
+    }
+
+    /// Whether a unit's next spike is reported at or before `t_us`.
+    #[inline(always)]
+    fn due(&self, t_us: u32) -> bool {
+        let [lr, rl] = &self.units;
+        lr.due(t_us) | rl.due(t_us)
+    }
+
+    /// The unit of orientation `dir`.
+    pub fn unit(&self, dir: Dir) -> &BurstUnit {
+        let [lr, rl] = &self.units;
+        match dir {
+            Dir::LeftToRight => lr,
+            Dir::RightToLeft => rl,
+        }
     }
 }
 
@@ -110,14 +131,15 @@ impl Cell {
         Trace::from_bits(self.i_slow)
     }
 
+    /// The FAC trace's bits: a [`Trace`], or a [`WideTrace`] when the units run.
     #[inline]
-    fn fac(&self) -> Trace {
-        Trace::from_bits(self.i_fac & !POLARITY)
+    fn fac(&self) -> u32 {
+        self.i_fac & !POLARITY
     }
 
     #[inline]
-    fn set_fac(&mut self, i: Trace) {
-        self.i_fac = (self.i_fac & POLARITY) | (i.to_bits() & !POLARITY);
+    fn set_fac(&mut self, bits: u32) {
+        self.i_fac = (self.i_fac & POLARITY) | (bits & !POLARITY);
     }
 }
 
@@ -173,8 +195,21 @@ pub trait NetSink {
     const SLOW: bool = false;
     /// One triggering event.
     fn trigger(&mut self, _t: &Trigger) {}
-    /// One spike (spikes of one unit arrive in time order).
+    /// One spike (spikes of one unit arrive in time order; a spike at `t` arrives before any
+    /// event after `t` and at the latest at the first [`Network::tick`] at or after `t`, or up
+    /// to [`NetSink::ahead_us`] earlier).
     fn spike(&mut self, _s: Spike) {}
+    /// How far (µs) beyond the clock this sink takes spikes: [`Network::tick`]`(t)` then emits
+    /// every spike up to `t + ahead_us()` (a unit in a dense burst is visited once per that
+    /// much time rather than once per tick). An event that changes a unit's burst takes back
+    /// ([`NetSink::retract`]) its spikes emitted beyond the event's time. 0 (the default): only
+    /// spikes up to the clock, never taken back.
+    fn ahead_us(&self) -> u32 {
+        0
+    }
+    /// A spike emitted ahead of the clock that an event has cancelled (the same [`Spike`] as
+    /// given to [`NetSink::spike`]; the latest of a unit first).
+    fn retract(&mut self, _s: Spike) {}
 }
 
 /// Any `FnMut(Spike)` is a spike sink.
@@ -209,9 +244,9 @@ pub struct NetStats {
     pub filtered: u64,
     /// Events whose time lay before their cell's time (processed at the cell's time).
     pub out_of_order: u64,
-    /// Spikes of left-to-right units.
+    /// Spikes of left-to-right units (emitted and not taken back; see [`NetSink::ahead_us`]).
     pub spikes_lr: u64,
-    /// Spikes of right-to-left units.
+    /// Spikes of right-to-left units (emitted and not taken back).
     pub spikes_rl: u64,
 }
 
@@ -272,45 +307,132 @@ pub struct Network<'a, L: Layout> {
     cells: &'a mut [Cell],
     /// Empty when no sink wants spikes; else one pair per cell.
     units: &'a mut [UnitPair],
+    /// Cells with a unit that has a spike pending (one bit per cell).
     active: &'a mut [u32],
     filter: InputFilter,
-    /// FAC trace level below which the last onset is older than the filter's gap.
-    onset_level: Trace,
+    /// FAC trace level below which the last onset is older than the filter's gap (bits of the
+    /// FAC trace's format: [`Trace`], or [`WideTrace`] when the units run).
+    onset_level: u32,
     /// Slow FAC trace level below which the last slow onset is older than
     /// [`SLOW_ONSET_GAP_US`].
     slow_onset_level: Trace,
     /// Next cell of the round-robin clock refresh.
     refresh: usize,
     stats: NetStats,
+    /// Spikes emitted ahead of the clock, counted when the clock reaches them.
+    ahead: Ahead,
 }
 
-#[inline]
-fn unpack_unit(i_trg: u32, mem: u32) -> UnitState {
-    if mem & REFRACTORY != 0 {
-        UnitState {
-            i_trg: Trace::from_bits(i_trg),
-            v: U1F31::ZERO,
-            refractory_us: (mem & !REFRACTORY) >> 16,
-            lag_q16: mem as u16,
+/// Output periods of spikes emitted ahead of the clock that [`Ahead`] tracks (beyond, they
+/// count at the last).
+const AHEAD_TICKS: usize = 32;
+
+/// Spikes emitted ahead of the clock ([`NetSink::ahead_us`]), by the tick that will reach them,
+/// so that [`NetStats`] counts only spikes up to the clock (as without emission ahead).
+#[derive(Clone, Debug, Default)]
+struct Ahead {
+    /// Left-to-right and right-to-left spikes for the tick `k` after the last (ring index
+    /// `head + k`).
+    ring: [[u32; 2]; AHEAD_TICKS],
+    head: usize,
+    /// The last tick (µs), once there was one.
+    clock: Option<u32>,
+    /// The interval between the last two ticks (µs, 0 before) and `2^32 / period + 1`.
+    period: u32,
+    inv_period: u64,
+}
+
+impl Ahead {
+    /// The ring slot of a spike at `t_us` after the clock.
+    #[inline]
+    fn slot(&self, t_us: u32) -> usize {
+        let Some(clock) = self.clock else {
+            return (self.head + 1) % AHEAD_TICKS;
+        };
+        let d = t_us.wrapping_sub(clock).max(1);
+        let k = if self.period == 0 {
+            1
+        } else {
+            let p = u64::from(self.period);
+            let x = u64::from(d - 1);
+            let mut k = (x * self.inv_period) >> 32;
+            if k * p > x {
+                k -= 1;
+            }
+            k as usize + 1
+        };
+        (self.head + k.min(AHEAD_TICKS - 1)) % AHEAD_TICKS
+    }
+
+    /// Counts a spike emitted at a tick: now when it is not beyond the clock, else later.
+    #[inline]
+    fn emitted(&mut self, stats: &mut NetStats, dir: Dir, t_us: u32) {
+        if self
+            .clock
+            .is_none_or(|c| (t_us.wrapping_sub(c) as i32) <= 0)
+        {
+            count(stats, dir, 1);
+        } else {
+            let i = self.slot(t_us);
+            if let Some(n) = self.ring.get_mut(i).and_then(|r| r.get_mut(dir.slot())) {
+                *n += 1;
+            }
         }
-    } else {
-        UnitState {
-            i_trg: Trace::from_bits(i_trg),
-            v: U1F31::from_bits(mem),
-            refractory_us: 0,
-            lag_q16: 0,
+    }
+
+    /// Uncounts a spike taken back (it was emitted ahead).
+    #[inline]
+    fn retracted(&mut self, stats: &mut NetStats, dir: Dir, t_us: u32) {
+        let i = self.slot(t_us);
+        match self.ring.get_mut(i).and_then(|r| r.get_mut(dir.slot())) {
+            Some(n) if *n > 0 => *n -= 1,
+            _ => uncount(stats, dir),
+        }
+    }
+
+    /// The clock moves to the tick at `t_us`: the spikes it reaches count.
+    #[inline]
+    fn tick(&mut self, stats: &mut NetStats, t_us: u32) {
+        if let Some(c) = self.clock {
+            let p = t_us.wrapping_sub(c);
+            if p != self.period && p != 0 && p < 1 << 31 {
+                self.period = p;
+                self.inv_period = (1u64 << 32) / u64::from(p) + 1;
+            }
+            self.head = (self.head + 1) % AHEAD_TICKS;
+            if let Some(r) = self.ring.get_mut(self.head) {
+                let [lr, rl] = core::mem::take(r);
+                stats.spikes_lr += u64::from(lr);
+                stats.spikes_rl += u64::from(rl);
+            }
+        }
+        self.clock = Some(t_us);
+    }
+
+    /// Everything emitted counts (end of a recording, after spikes beyond it were taken back).
+    fn settle(&mut self, stats: &mut NetStats) {
+        for r in &mut self.ring {
+            let [lr, rl] = core::mem::take(r);
+            stats.spikes_lr += u64::from(lr);
+            stats.spikes_rl += u64::from(rl);
         }
     }
 }
 
 #[inline]
-fn pack_unit(u: &UnitState) -> (u32, u32) {
-    let mem = if u.refractory_us > 0 {
-        REFRACTORY | (u.refractory_us.min(0x7FFF) << 16) | u32::from(u.lag_q16)
-    } else {
-        u.v.to_bits().min(!REFRACTORY)
-    };
-    (u.i_trg.to_bits(), mem)
+fn count(stats: &mut NetStats, dir: Dir, n: u32) {
+    match dir {
+        Dir::LeftToRight => stats.spikes_lr += u64::from(n),
+        Dir::RightToLeft => stats.spikes_rl += u64::from(n),
+    }
+}
+
+#[inline]
+fn uncount(stats: &mut NetStats, dir: Dir) {
+    match dir {
+        Dir::LeftToRight => stats.spikes_lr = stats.spikes_lr.saturating_sub(1),
+        Dir::RightToLeft => stats.spikes_rl = stats.spikes_rl.saturating_sub(1),
+    }
 }
 
 /// The state a network runs in, borrowed from the caller (no heap): one [`Cell`] per cell of
@@ -406,10 +528,14 @@ impl<'a, L: Layout> Network<'a, L> {
         units.fill(UnitPair::default());
         active.fill(0);
         let onset_level = match filter {
-            InputFilter::All => Trace::ZERO,
+            InputFilter::All => 0,
             InputFilter::Onsets { gap_us } => {
-                let w = kernel.fac_input(Trace::ZERO);
-                kernel.decay_fac(w, gap_us)
+                let w = if units.is_empty() {
+                    kernel.fac_input(Trace::ZERO).to_bits()
+                } else {
+                    kernel.fac_input_wide(WideTrace(0)).0
+                };
+                kernel.decay_fac(Trace::from_bits(w), gap_us).to_bits()
             }
         };
         let slow_onset_level = decay_slow(kernel.fac_input(Trace::ZERO), SLOW_ONSET_GAP_US);
@@ -424,6 +550,7 @@ impl<'a, L: Layout> Network<'a, L> {
             slow_onset_level,
             refresh: 0,
             stats: NetStats::default(),
+            ahead: Ahead::default(),
         })
     }
 
@@ -442,17 +569,51 @@ impl<'a, L: Layout> Network<'a, L> {
         &self.stats
     }
 
+    /// The units of cell `c` (when the units run).
+    pub fn units(&self, c: usize) -> Option<&UnitPair> {
+        self.units.get(c)
+    }
+
+    /// Cells with a spike pending (marked in the active bitset).
+    pub fn pending_cells(&self) -> usize {
+        self.active.iter().map(|w| w.count_ones() as usize).sum()
+    }
+
     /// Bytes of state per pixel: a [`Cell`], and a [`UnitPair`] when the units run.
     pub const CELL_BYTES: usize = core::mem::size_of::<Cell>();
     /// Bytes of one [`UnitPair`] (two units).
     pub const UNIT_PAIR_BYTES: usize = core::mem::size_of::<UnitPair>();
 
-    /// FAC trace of cell `c` at time `t` (0 for a missing cell).
+    /// FAC trace (bits) of cell `c` at time `t` (0 for a missing cell).
     #[inline]
-    fn fac_at(&self, c: Option<usize>, t: u32) -> Trace {
+    fn fac_at(&self, c: Option<usize>, t: u32) -> u32 {
         match c.and_then(|c| self.cells.get(c)) {
-            Some(cell) => self.kernel.decay_fac(cell.fac(), elapsed_us(cell.t_us, t)),
-            None => Trace::ZERO,
+            Some(cell) => self.decay_fac(cell.fac(), elapsed_us(cell.t_us, t)),
+            None => 0,
+        }
+    }
+
+    /// A FAC trace's bits (either format: decay is a scaling) decayed over `dt` µs.
+    #[inline]
+    fn decay_fac(&self, bits: u32, dt_us: u32) -> u32 {
+        self.kernel
+            .decay_fac(Trace::from_bits(bits), dt_us)
+            .to_bits()
+    }
+
+    /// Whether FAC traces are [`WideTrace`]s (the network has units) or [`Trace`]s.
+    #[inline]
+    fn wide(&self) -> bool {
+        !self.units.is_empty()
+    }
+
+    /// The FAC trace's bits as a [`Trace`] (for the [`Trigger`] record).
+    #[inline]
+    fn fac_trace(&self, bits: u32) -> Trace {
+        if self.wide() {
+            WideTrace(bits).to_trace()
+        } else {
+            Trace::from_bits(bits)
         }
     }
 
@@ -463,6 +624,12 @@ impl<'a, L: Layout> Network<'a, L> {
             Some(cell) => decay_slow(cell.slow(), elapsed_us(cell.t_us, t)),
             None => Trace::ZERO,
         }
+    }
+
+    /// Whether the units run (a sink that wants spikes, and unit state to run them in).
+    #[inline]
+    fn spiking<S: NetSink>(&self) -> bool {
+        S::SPIKES && !self.units.is_empty()
     }
 
     /// Processes one event. Spikes of the units it triggers, up to the event time, come first.
@@ -477,49 +644,82 @@ impl<'a, L: Layout> Network<'a, L> {
             self.stats.ignored += 1;
             return;
         };
-        let t = ev.t_us;
-        let kernel = self.kernel;
-        // The pixel's own FAC trace just before the event (decayed once, used twice).
-        let (own_now, own_slow_now, late) = match self.cells.get(c) {
-            Some(cell) => {
-                let since = EventTime::from_us(t).since(EventTime::from_us(cell.t_us));
-                let late = since.is_none() && cell.is_live();
-                let d = since.unwrap_or(0);
-                let slow = if S::SLOW {
-                    decay_slow(cell.slow(), d)
-                } else {
-                    Trace::ZERO
-                };
-                (kernel.decay_fac(cell.fac(), d), slow, late)
-            }
-            None => return,
+        let Some(own) = self.own_traces::<S>(c, ev.t_us) else {
+            return;
         };
-        // Whether this event starts a new edge for the slow units too (see `SLOW_ONSET_GAP_US`).
-        let mut slow_onset = true;
-        if let InputFilter::Onsets { .. } = self.filter {
-            let onset_level = self.onset_level;
-            let Some(cell) = self.cells.get_mut(c) else {
-                return;
-            };
-            let was_on = cell.i_fac & POLARITY != 0;
-            if ev.on {
-                cell.i_fac |= POLARITY;
-            } else {
-                cell.i_fac &= !POLARITY;
-            }
-            if was_on == ev.on && own_now >= onset_level {
-                self.stats.filtered += 1;
-                return;
-            }
-            slow_onset = was_on != ev.on || own_slow_now < self.slow_onset_level;
-        }
-        if late {
+        let Some(slow_onset) = self.input_filter(c, ev.on, &own) else {
+            return;
+        };
+        if own.late {
             self.stats.out_of_order += 1;
         }
-        let spiking = S::SPIKES && !self.units.is_empty();
         let mask = self.layout.units_at(ev.x, ev.y, c);
+        let (fac, slow) = self.neighbour_traces::<S>(ev, c, mask);
+        if self.spiking::<S>() {
+            self.units_to_event::<S>(c, &own, ev.t_us, sink);
+        }
+        self.trigger_record(c, ev, mask, &own, slow_onset, fac, slow, sink);
+        if self.spiking::<S>() {
+            self.unit_update(c, mask, &own, ev.t_us, fac, sink);
+        }
+    }
+
+    /// The pixel's own FAC traces just before the event (decayed once, used twice), and whether
+    /// the event came before the cell's time (late: processed at the cell's time).
+    #[inline]
+    fn own_traces<S: NetSink>(&self, c: usize, t: u32) -> Option<OwnTraces> {
+        let cell = self.cells.get(c)?;
+        let since = EventTime::from_us(t).since(EventTime::from_us(cell.t_us));
+        let late = since.is_none()
+            && (cell.is_live()
+                || (self.spiking::<S>() && self.units.get(c).is_some_and(UnitPair::is_live)));
+        let since = since.unwrap_or(0);
+        let slow = if S::SLOW {
+            decay_slow(cell.slow(), since)
+        } else {
+            Trace::ZERO
+        };
+        Some(OwnTraces {
+            fac: self.decay_fac(cell.fac(), since),
+            slow,
+            late,
+        })
+    }
+
+    /// The input filter: records the event's polarity and says whether the event goes on
+    /// (`None`: held back), and if so whether it starts a new edge for the slow units too (see
+    /// [`SLOW_ONSET_GAP_US`]).
+    #[inline]
+    fn input_filter(&mut self, c: usize, on: bool, own: &OwnTraces) -> Option<bool> {
+        let InputFilter::Onsets { .. } = self.filter else {
+            return Some(true);
+        };
+        let onset_level = self.onset_level;
+        let cell = self.cells.get_mut(c)?;
+        let was_on = cell.i_fac & POLARITY != 0;
+        if on {
+            cell.i_fac |= POLARITY;
+        } else {
+            cell.i_fac &= !POLARITY;
+        }
+        if was_on == on && own.fac >= onset_level {
+            self.stats.filtered += 1;
+            return None;
+        }
+        Some(was_on != on || own.slow < self.slow_onset_level)
+    }
+
+    /// The FAC traces (bits, and slow traces when the sink wants them) of the FAC pixels of
+    /// the units in `mask`, at the event time: what the units' TRG input multiplies.
+    #[inline]
+    fn neighbour_traces<S: NetSink>(
+        &self,
+        ev: Event,
+        c: usize,
+        mask: UnitMask,
+    ) -> ([u32; 2], [Trace; 2]) {
         let s = i32::from(self.layout.stride());
-        let mut fac = [Trace::ZERO; 2];
+        let mut fac = [0u32; 2];
         let mut slow = [Trace::ZERO; 2];
         for (slot, dx) in [(0usize, -s), (1, s)] {
             if mask & (1 << slot) == 0 {
@@ -527,33 +727,59 @@ impl<'a, L: Layout> Network<'a, L> {
             }
             let nb = self.layout.neighbor(ev.x, ev.y, c, dx);
             if let Some(f) = fac.get_mut(slot) {
-                *f = self.fac_at(nb, t);
+                *f = self.fac_at(nb, ev.t_us);
             }
             if S::SLOW {
                 if let Some(f) = slow.get_mut(slot) {
-                    *f = self.slow_at(nb, t);
+                    *f = self.slow_at(nb, ev.t_us);
                 }
             }
         }
-        if spiking {
-            self.advance_cell::<S>(c, t, sink);
-        }
+        (fac, slow)
+    }
+
+    /// The pixel's own traces take the event (its FAC trace `+= w_F`, the slow one on a slow
+    /// onset), its clock moves to the event (unless late), and the sink gets the [`Trigger`].
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn trigger_record<S: NetSink>(
+        &mut self,
+        c: usize,
+        ev: Event,
+        mask: UnitMask,
+        own: &OwnTraces,
+        slow_onset: bool,
+        fac: [u32; 2],
+        mut slow: [Trace; 2],
+        sink: &mut S,
+    ) {
+        let kernel = self.kernel;
+        let wide = self.wide();
+        let [lr, rl] = fac.map(|f| self.fac_trace(f));
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };
-        if !spiking && !late {
-            cell.t_us = t;
+        if !own.late {
+            cell.t_us = ev.t_us;
         }
-        let own = kernel.fac_input(if spiking { cell.fac() } else { own_now });
-        cell.set_fac(own);
+        let own_bits = if wide {
+            kernel.fac_input_wide(WideTrace(own.fac)).0
+        } else {
+            kernel.fac_input(Trace::from_bits(own.fac)).to_bits()
+        };
+        cell.set_fac(own_bits);
+        let own_fac = if wide {
+            WideTrace(own_bits).to_trace()
+        } else {
+            Trace::from_bits(own_bits)
+        };
         let own_slow = if S::SLOW {
-            let now = if spiking { cell.slow() } else { own_slow_now };
             if slow_onset {
-                let i = kernel.fac_input(now);
+                let i = kernel.fac_input(own.slow);
                 cell.i_slow = i.to_bits();
                 i
             } else {
-                cell.i_slow = now.to_bits();
+                cell.i_slow = own.slow.to_bits();
                 // Not a new edge for the slow units: no slow drive, nothing to decode.
                 slow = [Trace::ZERO; 2];
                 Trace::ZERO
@@ -562,40 +788,75 @@ impl<'a, L: Layout> Network<'a, L> {
             Trace::ZERO
         };
         if mask != 0 {
-            let [lr, rl] = fac;
             let [slr, srl] = slow;
             sink.trigger(&Trigger {
-                t_us: t,
+                t_us: ev.t_us,
                 x: ev.x,
                 y: ev.y,
                 drive: [kernel.drive(lr), kernel.drive(rl)],
-                own_fac: own,
+                own_fac,
                 slow_drive: [kernel.drive(slr), kernel.drive(srl)],
                 own_slow,
             });
         }
-        if spiking {
-            let Some(pair) = self.units.get_mut(c) else {
-                return;
-            };
-            let mut may_spike = false;
-            for dir in Dir::BOTH {
-                let slot = dir.slot();
-                if mask & (1 << slot) == 0 {
-                    continue;
-                }
-                let (Some(it), Some(mem)) = (pair.i_trg.get_mut(slot), pair.mem.get_mut(slot))
-                else {
-                    continue;
-                };
-                let mut u = unpack_unit(*it, *mem);
-                kernel.trg_input(&mut u, fac.get(slot).copied().unwrap_or(Trace::ZERO));
-                may_spike |= kernel.may_spike(&u);
-                (*it, *mem) = pack_unit(&u);
+    }
+
+    /// Before an event acts on cell `c`: its units' spikes up to the event come out, and their
+    /// state moves to the event time with the cell's clock.
+    #[inline]
+    fn units_to_event<S: NetSink>(&mut self, c: usize, own: &OwnTraces, t: u32, sink: &mut S) {
+        let kernel = self.kernel;
+        let Some(pair) = self.units.get_mut(c) else {
+            return;
+        };
+        let t_in = if own.late {
+            // Processed at the cell's time.
+            self.cells.get(c).map_or(t, |cell| cell.t_us)
+        } else {
+            t
+        };
+        let stats = &mut self.stats;
+        emit_pair(kernel, pair, c, t_in, fine(t_in), sink, |dir, _| {
+            count(stats, dir, 1)
+        });
+    }
+
+    /// The TRG input of the units in `mask`: each takes back its spikes emitted beyond the
+    /// event, takes its drive `w_T · I_F(t⁻)`, and its burst is recomputed; the cell is marked
+    /// active while a spike is pending.
+    #[inline]
+    fn unit_update<S: NetSink>(
+        &mut self,
+        c: usize,
+        mask: UnitMask,
+        own: &OwnTraces,
+        t: u32,
+        fac: [u32; 2],
+        sink: &mut S,
+    ) {
+        let kernel = self.kernel;
+        let t_in = if own.late {
+            self.cells.get(c).map_or(t, |cell| cell.t_us)
+        } else {
+            t
+        };
+        let Some(pair) = self.units.get_mut(c) else {
+            return;
+        };
+        let cell = c as u32;
+        for ((u, dir), f) in pair.units.iter_mut().zip(Dir::BOTH).zip(fac) {
+            if mask & (1 << dir.slot()) == 0 {
+                continue;
             }
-            if may_spike {
-                self.mark_active(c);
-            }
+            let (stats, ahead) = (&mut self.stats, &mut self.ahead);
+            kernel.burst_retract(u, fine(t_in), |t_us| {
+                ahead.retracted(stats, dir, t_us);
+                sink.retract(Spike { t_us, cell, dir })
+            });
+            kernel.burst_input(u, t_in, WideTrace(f));
+        }
+        if pair.pending() {
+            self.mark_active(c);
         }
     }
 
@@ -606,79 +867,78 @@ impl<'a, L: Layout> Network<'a, L> {
         }
     }
 
-    /// Advances cell `c` (and its units, when they run) to time `t`, emitting the units' spikes
-    /// in `(cell time, t]`. Returns whether a unit may still spike without further input.
-    fn advance_cell<S: NetSink>(&mut self, c: usize, t: u32, sink: &mut S) -> bool {
+    /// Moves cell `c`'s clock (and its units' drive) forward to `t`; nothing when the cell is
+    /// ahead of `t`.
+    fn advance_cell(&mut self, c: usize, t: u32) {
         let kernel = self.kernel;
         let Some(cell) = self.cells.get_mut(c) else {
-            return false;
+            return;
         };
-        let pair = if S::SPIKES {
-            self.units.get_mut(c)
-        } else {
-            None
-        };
+        let pair = self.units.get_mut(c);
         if !cell.is_live() && !pair.as_deref().is_some_and(UnitPair::is_live) {
             cell.t_us = t;
-            return false;
+            return;
         }
         let Some(dt) = EventTime::from_us(t).since(EventTime::from_us(cell.t_us)) else {
-            // The cell is ahead of `t` (an earlier event came late): nothing to advance.
-            return true;
+            return;
         };
-        let t0 = cell.t_us;
-        let mut may_spike = false;
-        if let (Some(pair), true) = (pair, dt > 0) {
-            for dir in Dir::BOTH {
-                let slot = dir.slot();
-                let (Some(it), Some(mem)) = (pair.i_trg.get_mut(slot), pair.mem.get_mut(slot))
-                else {
-                    continue;
-                };
-                if *it == 0 && *mem == 0 {
-                    continue;
-                }
-                let mut u = unpack_unit(*it, *mem);
-                let n = kernel.advance(&mut u, t0, dt, |ts| {
-                    sink.spike(Spike {
-                        t_us: ts,
-                        cell: c as u32,
-                        dir,
-                    })
-                });
-                match dir {
-                    Dir::LeftToRight => self.stats.spikes_lr += u64::from(n),
-                    Dir::RightToLeft => self.stats.spikes_rl += u64::from(n),
-                }
-                may_spike |= kernel.may_spike(&u);
-                (*it, *mem) = pack_unit(&u);
+        if dt == 0 {
+            return;
+        }
+        cell.set_fac(kernel.decay_fac(Trace::from_bits(cell.fac()), dt).to_bits());
+        cell.i_slow = decay_slow(cell.slow(), dt).to_bits();
+        cell.t_us = t;
+        if let Some(pair) = pair {
+            for u in &mut pair.units {
+                kernel.burst_settle(u, t);
             }
         }
-        if dt > 0 {
-            cell.set_fac(kernel.decay_fac(cell.fac(), dt));
-            if S::SLOW {
-                cell.i_slow = decay_slow(cell.slow(), dt).to_bits();
-            }
-            cell.t_us = t;
-        }
-        may_spike
     }
 
-    /// Moves the network's clock to `t`: advances every cell marked active (emitting its spikes
-    /// up to `t`, unmarking it when no unit can spike any more) and one more cell of a
-    /// round-robin sweep that keeps every cell's clock within 2^31 µs of the present.
+    /// Moves the network's clock to `t`: emits every pending spike reported at or before `t`
+    /// (or `t +` [`NetSink::ahead_us`]), visiting only the cells in the active bitset, and
+    /// there only units with a spike due (unmarking cells whose bursts are all out); and moves
+    /// one more cell's clock, a round-robin sweep that keeps every cell's clock within 2^31 µs
+    /// of the present.
     pub fn tick<S: NetSink>(&mut self, t: u32, sink: &mut S) {
-        if S::SPIKES && !self.units.is_empty() {
-            for w in 0..self.active.len() {
-                let mut bits = self.active.get(w).copied().unwrap_or(0);
+        if self.spiking::<S>() {
+            self.ahead.tick(&mut self.stats, t);
+            let ahead = sink.ahead_us();
+            let horizon = t.wrapping_add(ahead);
+            // A unit is visited when its next spike comes due, and then emits a whole horizon's
+            // worth: a unit in a dense burst once per horizon, not once per tick.
+            let due = t;
+            let until = reported_by(horizon);
+            let kernel = self.kernel;
+            for (w, word) in self.active.iter_mut().enumerate() {
+                if *word == 0 {
+                    continue;
+                }
+                // First the cells of this word with a unit due (loads without branches on
+                // them, so they overlap), then those.
+                let base = w * 32;
+                let mut due_bits = 0u32;
+                let mut bits = *word;
                 while bits != 0 {
-                    let b = bits.trailing_zeros() as usize;
+                    let b = bits.trailing_zeros();
                     bits &= bits - 1;
-                    let c = w * 32 + b;
-                    if !self.advance_cell::<S>(c, t, sink) {
-                        if let Some(word) = self.active.get_mut(w) {
-                            *word &= !(1 << b);
-                        }
+                    if let Some(pair) = self.units.get(base + b as usize) {
+                        due_bits |= u32::from(pair.due(due)) << b;
+                    }
+                }
+                while due_bits != 0 {
+                    let b = due_bits.trailing_zeros() as usize;
+                    due_bits &= due_bits - 1;
+                    let c = base + b;
+                    let Some(pair) = self.units.get_mut(c) else {
+                        continue;
+                    };
+                    let (stats, ahead) = (&mut self.stats, &mut self.ahead);
+                    emit_pair(kernel, pair, c, due, until, sink, |dir, t_us| {
+                        ahead.emitted(stats, dir, t_us)
+                    });
+                    if !pair.pending() {
+                        *word &= !(1 << b);
                     }
                 }
             }
@@ -686,22 +946,67 @@ impl<'a, L: Layout> Network<'a, L> {
         if !self.cells.is_empty() {
             let c = self.refresh % self.cells.len();
             self.refresh = c + 1;
-            if self.advance_cell::<S>(c, t, sink) {
-                self.mark_active(c);
-            }
+            self.advance_cell(c, t);
         }
     }
 
-    /// Advances every live cell to `t`, emitting all spikes up to `t` (end of a recording).
+    /// Emits every pending spike reported at or before `t`, takes back any emitted beyond it
+    /// (ahead of the clock), and moves every cell's clock to `t` (end of a recording).
     pub fn flush<S: NetSink>(&mut self, t: u32, sink: &mut S) {
-        for c in 0..self.cells.len() {
-            self.advance_cell::<S>(c, t, sink);
+        if self.spiking::<S>() {
+            let until = reported_by(t);
+            let kernel = self.kernel;
+            for (c, pair) in self.units.iter_mut().enumerate() {
+                let (stats, ahead) = (&mut self.stats, &mut self.ahead);
+                emit_pair(kernel, pair, c, t, until, sink, |dir, _| {
+                    count(stats, dir, 1)
+                });
+                let cell = c as u32;
+                for (u, dir) in pair.units.iter_mut().zip(Dir::BOTH) {
+                    kernel.burst_retract(u, until, |t_us| {
+                        ahead.retracted(stats, dir, t_us);
+                        sink.retract(Spike { t_us, cell, dir })
+                    });
+                }
+                if pair.pending() {
+                    if let Some(w) = self.active.get_mut(c / 32) {
+                        *w |= 1 << (c % 32);
+                    }
+                }
+            }
+            self.ahead.settle(&mut self.stats);
         }
-        self.active.fill(0);
+        for c in 0..self.cells.len() {
+            self.advance_cell(c, t);
+        }
     }
 
     /// Number of cells.
     pub fn cell_count(&self) -> usize {
         self.cells.len()
+    }
+}
+
+/// Emits the spikes of both units of cell `c` whose exact time is at or before `until`, for
+/// units whose next spike is reported at or before `due`; `tally` counts each.
+#[inline]
+fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
+    kernel: &Kernel,
+    pair: &mut UnitPair,
+    c: usize,
+    due: u32,
+    until: FineTime,
+    sink: &mut S,
+    mut tally: T,
+) {
+    let cell = c as u32;
+    let [lr, rl] = &mut pair.units;
+    for (u, dir) in [(lr, Dir::LeftToRight), (rl, Dir::RightToLeft)] {
+        if u.due(due) {
+            kernel.burst_emit(u, until, |t_us| {
+                tally(dir, t_us);
+                sink.spike(Spike { t_us, cell, dir })
+            });
+        }
     }
 }

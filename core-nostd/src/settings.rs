@@ -268,7 +268,7 @@ impl Settings {
 pub struct StorageNeeds {
     /// Cells (12 bytes each).
     pub cells: usize,
-    /// Unit pairs (16 bytes each); 0 when the units do not run.
+    /// Unit pairs ([`crate::network::Network::UNIT_PAIR_BYTES`] each); 0 when the units do not run.
     pub unit_pairs: usize,
     /// Words of the active bitset; 0 when the units do not run.
     pub active_words: usize,

@@ -11,17 +11,39 @@
 //! found by Newton's method started at the left end: `v(s)` is concave up to its peak, so the iterates
 //! increase monotonically towards the crossing and never pass it by more than the final 1 µs
 //! rounding; a stall past the peak means there is no crossing. Typically 3–5 iterations.
+//!
+//! # Two engines
+//! - [`Tde`], [`UnitState`], [`Kernel::advance`]: one unit, one Newton search per spike, traces
+//!   saturating at 16. The stand-alone unit of the sweep and of the calibrated readout's burst
+//!   test ([`Kernel::may_spike`]).
+//! - [`BurstUnit`], [`Kernel::burst_input`], [`Kernel::burst_emit`]: the network's units. The
+//!   TRG trace is kept as the drive level `D = q·tau` (Q32.32, no saturation below 2^32, about
+//!   10^8 times the trace of one event), the membrane as the time `t_e` at which it started
+//!   charging from 0 (`v(t) = D(t)·(t - t_e)/tau`, exact for the closed form above), and a burst
+//!   as the time `t*` at which `D` falls to 1 plus the position of the next spike on the burst
+//!   orbit (see `orbit`): every spike of a burst is one table lookup, and an input costs one
+//!   logarithm and one division. Times are Q32.32 µs (sub-µs exact); a spike is reported at the
+//!   nearest whole µs. With parameters the tables were not built for (`t_ref != 100 µs` or
+//!   `tau != 20 ms`), each spike is found by Newton's method on the same orbit equation instead.
 
 use fixed::types::U1F31;
 
 use crate::exp_table::{scale_q31, ExpDecay, ONE_Q31};
 use crate::params::{ParamError, TdeParams, Trace, TRACE_MAX};
 
+mod orbit;
+
 /// `1.0` in Q32 (the format of normalised membrane values inside the solver).
 const ONE_Q32: u64 = 1 << 32;
 
+/// `ln 2` in Q0.32.
+const LN2_Q32: u64 = 2_977_044_472;
+
 /// `1/e` in Q0.32.
 const INV_E_Q32: u128 = 1_580_030_169;
+
+/// Most spikes one input takes back (far more than a burst emits ahead of the clock).
+const MAX_RETRACT: u32 = 1 << 16;
 
 /// Newton iterations allowed per crossing search (each at least halves the distance to a
 /// tangential crossing, so this covers any window up to 2^24 µs).
@@ -40,6 +62,14 @@ pub struct Kernel {
     drive_q32: u64,
     /// `2^48 / tau` (for `f / tau` without a division).
     inv_tau_q48: u64,
+    /// Drive level `D = q·tau` per unit of `I_T`, in Q32 (`g·tau/theta`).
+    d_per_trace_q32: u64,
+    /// Whether the burst tables ([`orbit`]) were built for these `t_ref` and `tau`.
+    orbit: bool,
+    /// `tau · ln 2` in Q32.32 µs.
+    ln2_tau_fine: u64,
+    /// `2^64 / (tau · ln 2 · 2^32)`, for a first guess of a quotient by it.
+    inv_ln2_tau_q64: u64,
 }
 
 impl Kernel {
@@ -66,12 +96,23 @@ impl Kernel {
         } else {
             params.tau_trg_us
         };
+        let d_per_trace =
+            ((params.gain_per_s as u128 * tau as u128) << 48) / if denom == 0 { 1 } else { denom };
+        let d_per_trace_q32 = if d_per_trace > u64::MAX as u128 {
+            u64::MAX
+        } else {
+            d_per_trace as u64
+        };
         Self {
             params,
             exp_fac: ExpDecay::new(params.tau_fac_us),
             exp_trg: ExpDecay::new(params.tau_trg_us),
             drive_q32,
             inv_tau_q48: (1u64 << 48) / tau as u64,
+            d_per_trace_q32,
+            orbit: params.t_ref_us == orbit::T_REF_US && params.tau_trg_us == orbit::TAU_US,
+            ln2_tau_fine: tau as u64 * LN2_Q32,
+            inv_ln2_tau_q64: ((1u128 << 64) / (tau as u128 * LN2_Q32 as u128)) as u64,
         }
     }
 
@@ -107,8 +148,24 @@ impl Kernel {
     /// [`TRACE_MAX`] (what the unit's TRG trace receives, and what a burst encodes).
     #[inline]
     pub fn drive(&self, i_fac_now: Trace) -> Trace {
-        let prod = (u64::from(self.params.w_trg.to_bits()) * u64::from(i_fac_now.to_bits())) >> 16;
+        let prod = self.drive_q27(i_fac_now.to_bits(), Trace::FRAC_NBITS);
         Trace::from_bits(prod.min(u64::from(TRACE_MAX.to_bits())) as u32)
+    }
+
+    /// `w_T · I_F` in Q27 without saturation, for `I_F` given as raw bits with `frac_bits`
+    /// fractional bits (24 to 27): the one drive formula, [`Kernel::drive`] and the burst engine
+    /// ([`WideTrace`]) both use it.
+    #[inline]
+    fn drive_q27(&self, i_fac_bits: u32, frac_bits: u32) -> u64 {
+        let prod = u64::from(self.params.w_trg.to_bits()) * u64::from(i_fac_bits);
+        prod >> (16 + frac_bits).saturating_sub(Trace::FRAC_NBITS)
+    }
+
+    /// A FAC trace of the spiking network after one FAC event ([`WideTrace`]).
+    #[inline]
+    pub fn fac_input_wide(&self, i_fac_now: WideTrace) -> WideTrace {
+        let w = (u64::from(self.params.w_fac.to_bits()) << 8).min(u64::from(WIDE_MAX)) as u32;
+        WideTrace(i_fac_now.0.saturating_add(w).min(WIDE_MAX))
     }
 
     /// Applies one TRG event to a unit already advanced to the event time: `I_T += drive`.
@@ -440,4 +497,512 @@ pub struct PairResponse {
     pub spikes: u32,
     /// Delay of the first spike after the TRG event (µs), if any.
     pub first_spike_us: Option<u32>,
+}
+
+/// `x · a / b` for `a <= b`, `b > 0` (to 2^-31 relative), with one 64-bit division.
+#[inline]
+fn scale_by_ratio(x: u64, a: u64, b: u64) -> u64 {
+    // Both shifted so that b < 2^32: the ratio keeps 31 bits or more.
+    let k = 32u32.saturating_sub(b.leading_zeros());
+    let (a, b) = (a >> k, (b >> k).max(1));
+    let ratio = (a << 32) / b; // Q32, <= 1
+    ((u128::from(x) * u128::from(ratio)) >> 32) as u64
+}
+
+/// A FAC trace as the spiking network keeps it: U7F24 bits (saturating just below 128, where a
+/// [`Trace`] saturates at 16: busy pixels of real sensors pass 16, and the TRG drive with them;
+/// the calibrated pipeline keeps its [`Trace`]s). The top bit stays free for flags.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+pub struct WideTrace(pub u32);
+
+/// Largest [`WideTrace`] bits.
+const WIDE_MAX: u32 = 0x7FFF_FFFF;
+
+impl WideTrace {
+    /// Fractional bits.
+    pub const FRAC_NBITS: u32 = 24;
+
+    /// The same value as a [`Trace`], saturating at [`TRACE_MAX`].
+    pub fn to_trace(self) -> Trace {
+        Trace::from_bits((u64::from(self.0) << 3).min(u64::from(TRACE_MAX.to_bits())) as u32)
+    }
+}
+
+/// A time on the event clock with 32 fractional bits (Q32.32 µs, wrapping: the top 32 bits are
+/// the `u32` µs clock). Differences are taken wrapping, as `i64`.
+pub type FineTime = u64;
+
+/// `t_us` as a [`FineTime`].
+#[inline]
+pub const fn fine(t_us: u32) -> FineTime {
+    (t_us as u64) << 32
+}
+
+/// The whole µs nearest to `t`.
+#[inline]
+pub const fn nearest_us(t: FineTime) -> u32 {
+    (t.wrapping_add(1 << 31) >> 32) as u32
+}
+
+/// The latest [`FineTime`] reported at or before `t_us` (nearest whole µs <= `t_us`).
+#[inline]
+pub const fn reported_by(t_us: u32) -> FineTime {
+    fine(t_us).wrapping_add((1 << 31) - 1)
+}
+
+/// No burst (see [`BurstUnit::next`]).
+const NO_SPIKE: u64 = u64::MAX;
+
+/// [`BurstUnit::next`] of a burst whose spikes have all been emitted (the low bits keep where
+/// its last spike was, in case an input takes it back).
+const DONE: u64 = 1 << 63;
+
+/// [`BurstUnit::te_rel`] of a unit at rest (no drive).
+const AT_REST: i32 = i32::MIN;
+
+/// Largest drive level the burst engine represents: `D <= e^22` (`I_T` up to about 10^8
+/// default events' worth); above, `t*` is held at 22 `tau` ahead.
+const LN_D_MAX: u32 = 22;
+
+/// `e^22` in Q32.32.
+const E22_Q32: u64 = 15_397_083_433_145_465_870;
+
+/// One unit of the network's burst engine (see the module docs, "Two engines"). 24 bytes.
+///
+/// All of it is absolute time, so the state does not change between inputs and spikes: the
+/// drive level is `D(t) = e^((t* - t)/tau)`, the membrane `v(t) = D(t)·(t - t_e)/tau` for
+/// `t >= t_e` (0 before: refractory).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
+pub struct BurstUnit {
+    /// `t*`: when `D` is (or was) 1.
+    ts: FineTime,
+    /// The burst: the next spike to emit, at `t* - tau·r`, given by its Abel coordinate `alpha`
+    /// (Q32.32; `r = r(alpha)`) with the burst tables, else by `r` itself (Q32.32);
+    /// `DONE | alpha` (or `DONE | r`) of the last spike when all are out; `u64::MAX`: no burst.
+    next: u64,
+    /// `t_e - t*` in 1/256 µs ([`AT_REST`]: no drive at all), clamped to ±2^31: where the
+    /// membrane started charging before the burst's first spike (or with no burst). Within a
+    /// burst, `t_e` follows from the last spike.
+    te_rel: i32,
+    /// The nearest whole µs of the next spike to emit (while one is pending).
+    next_us: u32,
+}
+
+impl Default for BurstUnit {
+    fn default() -> Self {
+        Self::IDLE
+    }
+}
+
+impl BurstUnit {
+    /// A unit at rest.
+    pub const IDLE: Self = Self {
+        ts: 0,
+        next: NO_SPIKE,
+        te_rel: AT_REST,
+        next_us: 0,
+    };
+
+    /// Whether a spike is pending: computed, not yet emitted.
+    #[inline(always)]
+    pub fn pending(&self) -> bool {
+        self.next < DONE
+    }
+
+    /// The nearest whole µs of the next spike to emit, if one is pending.
+    #[inline(always)]
+    pub fn next_us(&self) -> Option<u32> {
+        self.pending().then_some(self.next_us)
+    }
+
+    /// Whether a spike is pending that is reported at or before `t_us` (no branch).
+    #[inline(always)]
+    pub fn due(&self, t_us: u32) -> bool {
+        self.pending() & ((t_us.wrapping_sub(self.next_us) as i32) >= 0)
+    }
+
+    /// Whether the unit is at rest (no drive).
+    #[inline]
+    pub fn is_idle(&self) -> bool {
+        self.te_rel == AT_REST
+    }
+
+    /// The stored `t_e` (meaningless at rest).
+    #[inline]
+    fn te(&self) -> FineTime {
+        self.ts
+            .wrapping_add_signed(i64::from(self.te_rel).wrapping_mul(1 << 24))
+    }
+
+    /// Sets `t_e` (rounded to 1/256 µs).
+    #[inline]
+    fn set_te(&mut self, te: FineTime) {
+        let rel = (te.wrapping_sub(self.ts) as i64) >> 24;
+        self.te_rel = rel.clamp(i64::from(i32::MIN) + 1, i64::from(i32::MAX)) as i32;
+    }
+
+    /// `t*` (Q32.32 µs): the drive level is `D(t) = e^((t* - t)/tau)`.
+    pub fn t_star(&self) -> Option<FineTime> {
+        (!self.is_idle()).then_some(self.ts)
+    }
+}
+
+impl Kernel {
+    /// Whether this kernel's bursts come from the burst tables (default `t_ref` and `tau`) or
+    /// from Newton's method.
+    pub fn has_burst_tables(&self) -> bool {
+        self.orbit
+    }
+
+    /// Brings a unit whose drive has become negligible (`D < 2^-32`) at `t_us` to rest, so
+    /// that no stored time falls more than a few seconds behind the clock.
+    #[inline]
+    pub fn burst_settle(&self, u: &mut BurstUnit, t_us: u32) {
+        if !u.is_idle() && !u.pending() && self.drive_level(u, fine(t_us)) == 0 {
+            *u = BurstUnit::IDLE;
+        }
+    }
+
+    /// The drive level `D(t) = e^((t* - t)/tau)` in Q32.32 (0 below 2^-32 and at rest).
+    #[inline]
+    fn drive_level(&self, u: &BurstUnit, t: FineTime) -> u64 {
+        if u.is_idle() {
+            return 0;
+        }
+        // (t* - t)/tau = n ln 2 + y, 0 <= y < ln 2: D = 2^(n+1) · e^(-(ln 2 - y)), the last
+        // factor in (1/2, 1] from the TRG decay table.
+        let ln2_tau = self.ln2_tau_fine as i64;
+        let tau_fine = i64::from(self.params.tau_trg_us) << 32;
+        let ahead = (u.ts.wrapping_sub(t) as i64).min(i64::from(LN_D_MAX) * tau_fine);
+        let mut n = ((i128::from(ahead) * i128::from(self.inv_ln2_tau_q64)) >> 64) as i64;
+        let mut rem = ahead - n * ln2_tau;
+        while rem < 0 {
+            n -= 1;
+            rem += ln2_tau;
+        }
+        while rem >= ln2_tau {
+            n += 1;
+            rem -= ln2_tau;
+        }
+        let shift = n + 2; // a Q31 factor times 2^(n+1), wanted in Q32: << (n + 2)
+        if shift <= -31 {
+            return 0;
+        }
+        let dt = (ln2_tau - rem) as u64;
+        let e = u64::from(self.exp_trg.decay_bits((dt >> 32) as u32));
+        // e^(-f/tau) ~ 1 - f/tau for the fraction f < 1 µs (error below 2e-9).
+        let frac_over_tau =
+            ((u128::from(dt & 0xFFFF_FFFF) * u128::from(self.inv_tau_q48)) >> 48) as u64;
+        let e = ((u128::from(e) * u128::from(ONE_Q32 - frac_over_tau)) >> 32) as u64; // Q31
+        if shift >= 0 {
+            e.checked_shl(shift as u32)
+                .map_or(E22_Q32, |d| d.min(E22_Q32))
+        } else {
+            e >> (-shift) as u32
+        }
+    }
+
+    /// `r` (Q5.27) of the spike at `next` (either engine), exactly as emitted.
+    #[inline]
+    fn r_emitted(&self, next: u64) -> u64 {
+        if self.orbit {
+            orbit::r_emitted(next)
+        } else {
+            next >> 5
+        }
+    }
+
+    /// The exact time of the spike at `next` (a pending or emitted spike of `u`'s burst).
+    #[inline]
+    fn spike_time(&self, u: &BurstUnit, next: u64) -> FineTime {
+        u.ts.wrapping_sub(self.tau_times_r(self.r_emitted(next)))
+    }
+
+    /// The orbit point before `next` (pending spike): the spike emitted before it, or before the
+    /// burst's first spike a virtual one exactly one refractory period before `t_e`.
+    #[inline]
+    fn previous(&self, next: u64) -> u64 {
+        if self.orbit {
+            next.saturating_add(orbit::ONE)
+        } else {
+            next + self.exp_neg_q32(next) + self.delta_q32()
+        }
+    }
+
+    /// Emits the unit's pending spikes whose exact time is at or before `until`, in order,
+    /// calling `on_spike` with each one's nearest whole µs. Returns how many.
+    #[inline]
+    pub fn burst_emit<F: FnMut(u32)>(
+        &self,
+        u: &mut BurstUnit,
+        until: FineTime,
+        on_spike: F,
+    ) -> u32 {
+        if !u.pending() {
+            return 0;
+        }
+        if !self.orbit {
+            return self.burst_emit_newton(u, until, on_spike);
+        }
+        let tau = u64::from(self.params.tau_trg_us);
+        let (next, n) = orbit::emit(u.ts, tau, until, u.next, on_spike);
+        if n > 0 {
+            u.next = if next == u64::MAX {
+                DONE | (u.next & 0xFFFF_FFFF)
+            } else {
+                next
+            };
+            if u.pending() {
+                u.next_us = nearest_us(self.spike_time(u, u.next));
+            }
+        }
+        n
+    }
+
+    /// [`Kernel::burst_emit`] without burst tables: each next spike by Newton's method.
+    #[inline(never)]
+    fn burst_emit_newton<F: FnMut(u32)>(
+        &self,
+        u: &mut BurstUnit,
+        until: FineTime,
+        mut on_spike: F,
+    ) -> u32 {
+        let delta = self.delta_q32();
+        let mut n = 0;
+        while u.pending() {
+            let r = u.next;
+            let t = self.spike_time(u, r);
+            if (until.wrapping_sub(t) as i64) < 0 {
+                break;
+            }
+            on_spike(nearest_us(t));
+            n += 1;
+            u.next = r
+                .checked_sub(delta)
+                .and_then(|y| self.h_inv(y))
+                .unwrap_or(DONE | r);
+            if u.pending() {
+                u.next_us = nearest_us(self.spike_time(u, u.next));
+            }
+        }
+        n
+    }
+
+    /// Takes back the unit's emitted spikes whose exact time lies after `after` (they were
+    /// emitted ahead of the clock; an input at `after` changes the burst), latest first,
+    /// calling `on_retract` with each one's nearest whole µs. Returns how many.
+    pub fn burst_retract<F: FnMut(u32)>(
+        &self,
+        u: &mut BurstUnit,
+        after: FineTime,
+        mut on_retract: F,
+    ) -> u32 {
+        if u.next == NO_SPIKE {
+            return 0;
+        }
+        // The last emitted spike: the one before the pending one, or the burst's last.
+        let mut last = if u.pending() {
+            self.previous(u.next)
+        } else {
+            u.next & !DONE
+        };
+        let mut n = 0;
+        while n < MAX_RETRACT {
+            let t = self.spike_time(u, last);
+            if (t.wrapping_sub(after) as i64) <= 0 {
+                break;
+            }
+            // A virtual point before the burst's first spike lies before the input that
+            // started the burst: the walk always ends there.
+            on_retract(nearest_us(t));
+            n += 1;
+            u.next = last;
+            u.next_us = nearest_us(t);
+            last = self.previous(last);
+        }
+        n
+    }
+
+    /// `delta = t_ref / tau` in Q32.32.
+    #[inline]
+    fn delta_q32(&self) -> u64 {
+        fine(self.params.t_ref_us) / u64::from(self.params.tau_trg_us.max(1))
+    }
+
+    /// When the unit's membrane started charging: after its last spike's refractory period if
+    /// that spike belongs to the current burst, else the stored start.
+    fn charging_start(&self, u: &BurstUnit) -> FineTime {
+        let te = u.te();
+        if u.next == NO_SPIKE {
+            return te;
+        }
+        let last = if u.pending() {
+            // The orbit point before the pending spike (precise, not as emitted).
+            let prev = self.previous(u.next);
+            let r = if self.orbit {
+                orbit::r_at(prev)
+            } else {
+                prev >> 5
+            };
+            u.ts.wrapping_sub(self.tau_times_r(r))
+        } else {
+            // All spikes out (and in the past): the burst's last spike.
+            let x = u.next & !DONE;
+            let r = if self.orbit {
+                orbit::r_last(orbit::r_at(x + orbit::ONE), true)
+            } else {
+                x >> 5
+            };
+            u.ts.wrapping_sub(self.tau_times_r(r))
+        };
+        let after = last.wrapping_add(fine(self.params.t_ref_us));
+        if (after.wrapping_sub(te) as i64) > 0 {
+            after
+        } else {
+            te
+        }
+    }
+
+    /// Applies one TRG event at `t_us` to a unit, with the current FAC trace of its FAC pixel:
+    /// `I_T += w_T·I_F(t⁻)` (the one drive formula of [`Kernel::drive`]), the membrane
+    /// continuous, and the next spike recomputed. Spikes up to `t_us` must have been emitted,
+    /// and any emitted after it taken back, first ([`Kernel::burst_emit`],
+    /// [`Kernel::burst_retract`]).
+    pub fn burst_input(&self, u: &mut BurstUnit, t_us: u32, i_fac_now: WideTrace) {
+        let drive = u128::from(self.drive_q27(i_fac_now.0, WideTrace::FRAC_NBITS));
+        let dd = (drive * u128::from(self.d_per_trace_q32)) >> Trace::FRAC_NBITS;
+        let dd = u64::try_from(dd).unwrap_or(u64::MAX);
+        if dd == 0 {
+            return;
+        }
+        let tt = fine(t_us);
+        let d0 = self.drive_level(u, tt);
+        let d1 = d0.saturating_add(dd).min(E22_Q32);
+        // The membrane is continuous: v = D·(t - t_e)/tau before and after, so the charging
+        // start moves to t - (D/D')·(t - t_e). In a refractory period it stays.
+        let te_old = self.charging_start(u);
+        let since = tt.wrapping_sub(te_old) as i64;
+        let te = if d0 == 0 {
+            tt
+        } else if since > 0 {
+            tt.wrapping_sub(scale_by_ratio(since as u64, d0, d1))
+        } else {
+            te_old
+        };
+        let ln_d = orbit::ln_q32(d1).unwrap_or(i64::MIN / 2);
+        u.ts = tt.wrapping_add_signed(ln_d.saturating_mul(i64::from(self.params.tau_trg_us)));
+        u.set_te(te);
+        u.next = NO_SPIKE;
+        // Past the peak of v (charging for tau or longer) it can only fall.
+        let charged = tt.wrapping_sub(te) as i64;
+        if charged >= (i64::from(self.params.tau_trg_us) << 32) {
+            return;
+        }
+        // L = ln D(t_e) = ln D(t) + (t - t_e)/tau.
+        let l = ln_d + ((i128::from(charged) * i128::from(self.inv_tau_q48)) >> 48) as i64;
+        let Ok(l) = u64::try_from(l) else {
+            return;
+        };
+        if l < ONE_Q32 {
+            return;
+        }
+        let first = if self.orbit {
+            orbit::first_alpha(l)
+        } else {
+            self.h_inv(l)
+        };
+        if let Some(first) = first {
+            u.next = first;
+            u.next_us = nearest_us(self.spike_time(u, first));
+        }
+    }
+
+    /// `tau·r` as a fine duration, for `r` in Q5.27.
+    #[inline]
+    fn tau_times_r(&self, r_q27: u64) -> u64 {
+        (u64::from(self.params.tau_trg_us) * r_q27) << 5
+    }
+
+    /// `r >= 0` with `r + e^(-r) = y` (Q32.32, `y >= 1`), by Newton's method from `r = y` (the
+    /// function is convex and increasing there, so the iterates fall monotonically onto the
+    /// root). For kernels without burst tables.
+    fn h_inv(&self, y: u64) -> Option<u64> {
+        if y < ONE_Q32 {
+            return None;
+        }
+        let mut r = y;
+        for _ in 0..MAX_NEWTON_STEPS {
+            let e = self.exp_neg_q32(r);
+            let g = (r + e).saturating_sub(y);
+            let slope = ONE_Q32.saturating_sub(e);
+            if g == 0 || slope == 0 {
+                break;
+            }
+            let step = ((u128::from(g) << 32) / u128::from(slope)).max(1);
+            let step = u64::try_from(step).unwrap_or(u64::MAX);
+            if step >= r {
+                r = 0;
+                break;
+            }
+            r -= step;
+        }
+        Some(r)
+    }
+
+    /// `e^(-r)` in Q0.32 for `r` in Q32.32, from the TRG decay table (`r·tau` µs).
+    fn exp_neg_q32(&self, r: u64) -> u64 {
+        let x = u128::from(r) * u128::from(self.params.tau_trg_us);
+        let whole = x >> 32;
+        if whole >= u128::from(crate::exp_table::DECAY_HORIZON_US) {
+            return 0;
+        }
+        let e = u128::from(self.exp_trg.decay_bits(whole as u32));
+        // e^(-f/tau) ~ 1 - f/tau for the fraction f < 1 µs (error below 2e-9).
+        let frac_over_tau = ((x & 0xFFFF_FFFF) * u128::from(self.inv_tau_q48)) >> 48;
+        ((e * (u128::from(ONE_Q32) - frac_over_tau)) >> 31) as u64
+    }
+}
+
+#[cfg(test)]
+mod burst_tests {
+    use super::*;
+
+    #[test]
+    fn drive_level_is_exp_of_t_star() {
+        let k = Kernel::DEFAULT;
+        for i in 0..4000i64 {
+            let x = -22.0 + (i as f64) * 0.011; // (t* - t) / tau
+            let u = BurstUnit {
+                ts: fine(1_000_000).wrapping_add_signed((x * 20_000.0 * 4_294_967_296.0) as i64),
+                next: NO_SPIKE,
+                te_rel: 0,
+                next_us: 0,
+            };
+            let d = k.drive_level(&u, fine(1_000_000)) as f64 / 4_294_967_296.0;
+            let want = x.exp();
+            assert!(
+                (d - want).abs() <= 6e-9 * want + 2.0 / 4_294_967_296.0,
+                "x {x}: {d} vs {want}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_strong_input_bursts_and_a_weak_one_does_not() {
+        let k = Kernel::DEFAULT;
+        let mut u = BurstUnit::IDLE;
+        k.burst_input(&mut u, 1000, WideTrace(1 << 24 >> 5)); // 1/32
+        assert!(!u.pending());
+        k.burst_input(&mut u, 1000, WideTrace(1 << 24));
+        assert!(u.pending());
+        let (mut n, mut last) = (0u32, 0u32);
+        k.burst_emit(&mut u, fine(2_000_000), |t| {
+            assert!(n == 0 || t > last);
+            n += 1;
+            last = t;
+        });
+        assert!(!u.pending());
+        assert!(n > 20, "{n}");
+    }
 }

@@ -2,64 +2,172 @@
 //! (signed so that positive = turning right, like the yaw rate). Each spike is weighted exactly,
 //! `e^(-(T - t_spike)/tau_A)` at the output time `T`. Dividing by `max |A|` over the recording
 //! (which needs the future) is left to the host.
+//!
+//! # Range
+//! `A` is integrated in an `i64` with 24 fractional bits: it holds ±2^39 spikes, more than any
+//! layout can produce (each unit adds at most `tau_A / t_ref + 1` to `|A|`: 10^4 for the
+//! longest `tau_A`, 1 s, and 8.4 M units on the largest sensor).
+//!
+//! The output ([`YawSample::yaw_rate`](super::YawSample), I16F16) is `A` in units of `2^s`
+//! spikes, `s = 10 + ceil(log2(tau_A / 10 ms))` ([`Normalized::output_shift`]): 1,024 spikes at
+//! the default `tau_A` = 10 ms, resolution 1/64 spike. It saturates only beyond `2^(15 + s)`
+//! spikes, which scales with `tau_A` as the bound above does: 33.5 M at 10 ms, more than a dense
+//! DAVIS346 network (178,880 units) can produce at the refractory limit (18.2 M). Since the host
+//! divides by the maximum over the recording, the scale cancels out of `host-sim run
+//! --readout normalized`'s `yaw_norm`.
+//!
+//! # Spikes ahead of the clock
+//! The readout takes spikes up to [`AHEAD_MAX_US`] (at most 14 output periods) beyond the
+//! network's clock ([`NetSink::ahead_us`]), into one bin per output time, each spike weighted to
+//! its own output time; a spike an input takes back ([`NetSink::retract`]) leaves its bin again.
+//! An output adds only its own bin: it counts exactly the spikes up to its time. Outputs must
+//! come once per period (as [`crate::pipeline::Pipeline`] calls them).
 
 use fixed::types::I16F16;
 
 use super::Readout;
-use crate::exp_table::ExpDecay;
+use crate::exp_table::{ExpDecay, Part};
 use crate::layout::Dir;
 use crate::network::{NetSink, Spike};
 use crate::unit::elapsed_us;
 
-/// Leaky integrator of spikes, in units of spikes (Q32.32).
+/// Fractional bits of the integrator.
+const FRAC: u32 = 24;
+
+/// Output periods the readout holds spikes for (the current one and those ahead).
+const RING: usize = 16;
+
+/// How far ahead of the clock (µs) the readout takes spikes, at most.
+pub const AHEAD_MAX_US: u32 = 4_000;
+
+/// Leaky integrator of spikes, in units of spikes (Q39.24).
 pub struct Normalized {
     decay: ExpDecay,
-    /// `A` at `t_last` in Q32.32.
+    /// `A` at `t_last`, Q39.24.
     a: i64,
     t_last: u32,
-    /// Contributions of spikes since `t_last`, already decayed to `next`.
-    pending: i64,
+    /// Contributions of spikes to the output at `next + k·period` (ring index `head + k`),
+    /// each weighted to that time (Q39.24).
+    bins: [i64; RING],
+    head: usize,
     next: u32,
     period_us: u32,
+    /// `floor(2^32 / period) + 1`, for a spike's bin without a division.
+    inv_period: u64,
+    /// Output unit: `2^shift` spikes.
+    shift: u32,
     started: bool,
 }
 
 impl Normalized {
     /// A readout with time constant `tau_a_us` and output period `period_us`.
     pub fn new(tau_a_us: u32, period_us: u32) -> Self {
+        let period_us = period_us.max(1);
         Self {
             decay: ExpDecay::new(tau_a_us),
             a: 0,
             t_last: 0,
-            pending: 0,
+            bins: [0; RING],
+            head: 0,
             next: 0,
             period_us,
+            inv_period: (1u64 << 32) / u64::from(period_us) + 1,
+            shift: output_shift(tau_a_us),
             started: false,
         }
     }
 
-    /// The integrator's raw value `A` (spikes) at the last output.
+    /// Adds `sign ·` the weight of a spike at `t_us` to its output's bin.
+    #[inline]
+    fn add(&mut self, t_us: u32, negative: bool) {
+        // Periods after the current output time: 0 up to it, then ceil(d / period).
+        let d = t_us.wrapping_sub(self.next) as i32;
+        let (k, to_end) = if d <= 0 {
+            (0, d.unsigned_abs())
+        } else {
+            let x = u64::from(d as u32 - 1);
+            let p = u64::from(self.period_us);
+            let mut k = (x * self.inv_period) >> 32;
+            if k * p > x {
+                k -= 1;
+            }
+            let k = k + 1; // ceil(d / p)
+            (k as usize, (k * p - u64::from(d as u32)) as u32)
+        };
+        let w = self.weight(to_end);
+        let i = (self.head + k.min(RING - 1)) % RING;
+        if let Some(b) = self.bins.get_mut(i) {
+            if negative {
+                *b -= w;
+            } else {
+                *b += w;
+            }
+        }
+    }
+
+    /// The integrator's raw value `A` at the last output, in spikes with 24 fractional bits.
     pub fn value(&self) -> i64 {
         self.a
     }
+
+    /// The output is `A / 2^output_shift()` spikes (see the module docs).
+    pub fn output_shift(&self) -> u32 {
+        self.shift
+    }
+
+    /// `e^(-d/tau_A)` in Q24 for `d` µs.
+    #[inline]
+    fn weight(&self, d: u32) -> i64 {
+        if d < 1 << 16 {
+            let (lo, _) = self.decay.table(Part::Lo);
+            let (mid, _) = self.decay.table(Part::Mid);
+            let l = u64::from(lo.get((d & 0xFF) as usize).copied().unwrap_or(0));
+            let m = u64::from(mid.get((d >> 8) as usize).copied().unwrap_or(0));
+            ((l * m) >> (62 - FRAC)) as i64
+        } else {
+            i64::from(self.decay.decay_bits(d) >> (31 - FRAC))
+        }
+    }
+}
+
+/// `s = 10 + ceil(log2(tau_a_us / 10_000))`, at least 0: the output unit is `2^s` spikes.
+const fn output_shift(tau_a_us: u32) -> u32 {
+    // The smallest k with 10 ms · 2^k >= tau_A, for k from -10 up.
+    let mut s = 0u32;
+    while s < 30 && ((10_000u64 << s) >> 10) < tau_a_us as u64 {
+        s += 1;
+    }
+    s
 }
 
 impl NetSink for Normalized {
     const SPIKES: bool = true;
 
+    #[inline]
     fn spike(&mut self, s: Spike) {
-        if !self.started {
-            return;
+        if self.started {
+            self.add(s.t_us, s.dir == Dir::LeftToRight);
         }
-        let w = i64::from(self.decay.decay_bits(elapsed_us(s.t_us, self.next))) << 1; // Q32
-        match s.dir {
-            Dir::RightToLeft => self.pending += w,
-            Dir::LeftToRight => self.pending -= w,
+    }
+
+    fn ahead_us(&self) -> u32 {
+        if self.started {
+            AHEAD_MAX_US.min(self.period_us.saturating_mul(RING as u32 - 2))
+        } else {
+            0
+        }
+    }
+
+    #[inline]
+    fn retract(&mut self, s: Spike) {
+        if self.started {
+            self.add(s.t_us, s.dir == Dir::RightToLeft);
         }
     }
 }
 
 impl Readout for Normalized {
+    /// The value at `t_us`, which must be the next output time (one period after the last).
     fn output(&mut self, t_us: u32) -> (I16F16, u8) {
         if !self.started {
             self.started = true;
@@ -68,11 +176,50 @@ impl Readout for Normalized {
             return (I16F16::ZERO, 0);
         }
         let k = i128::from(self.decay.decay_bits(elapsed_us(self.t_last, t_us)));
-        self.a = ((i128::from(self.a) * k) >> 31) as i64 + self.pending;
-        self.pending = 0;
+        let bin = self.bins.get_mut(self.head).map_or(0, core::mem::take);
+        self.a = ((i128::from(self.a) * k) >> 31) as i64 + bin;
+        self.head = (self.head + 1) % RING;
         self.t_last = t_us;
         self.next = t_us.wrapping_add(self.period_us);
-        let v = (self.a >> 16).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        // A (Q39.24) in units of 2^shift spikes, as Q16.16 bits.
+        let v = self.a >> (FRAC + self.shift - 16).min(63);
+        let v = v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
         (I16F16::from_bits(v), 0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_unit_scales_with_tau_a() {
+        assert_eq!(output_shift(10_000), 10);
+        assert_eq!(output_shift(10_001), 11);
+        assert_eq!(output_shift(20_000), 11);
+        assert_eq!(output_shift(1_000), 7);
+        assert_eq!(output_shift(1_000_000), 17);
+        assert_eq!(output_shift(1), 0);
+    }
+
+    #[test]
+    fn many_spikes_do_not_saturate() {
+        // 400 k net right-to-left spikes within one period: far beyond the old +-32,768.
+        let mut r = Normalized::new(10_000, 1_000);
+        r.output(0);
+        for i in 0..400_000u32 {
+            r.spike(Spike {
+                t_us: 1 + i % 999,
+                cell: 0,
+                dir: Dir::RightToLeft,
+            });
+        }
+        let (v, _) = r.output(1_000);
+        let spikes = f64::from(v.to_bits()) / 65536.0 * 1024.0;
+        let exact: f64 = (0..400_000u32)
+            .map(|i| (-(f64::from(999 - i % 999)) / 10_000.0).exp())
+            .sum();
+        assert!((spikes - exact).abs() < 1.0, "{spikes} vs {exact}");
+        assert!((r.value() as f64 / 16_777_216.0 - exact).abs() < 0.1);
     }
 }
