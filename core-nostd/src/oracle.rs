@@ -836,3 +836,676 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         Some((median, iqr * iqr / total.floor().max(1.0)))
     }
 }
+
+/// The spike readout in f64 (see [`crate::readout::spikes`] for the method), on the oracle's
+/// own spikes: onset filter, exact FAC traces, units advanced by [`OracleParams::advance`]
+/// (each output time moves every unit that may still spike to it, so that an output at `T`
+/// sees exactly the spikes up to `T`, in time order), the closed-form decoding of each burst
+/// in exact arithmetic, the pixel's own trace rebuilt from its decoded onsets, the twin rule,
+/// and leaky histograms per region decayed exactly each period with the field estimator of
+/// [`crate::readout::field`]. No pool: every unit is tracked. An independent implementation
+/// to check the fixed-point one.
+pub struct OracleSpikeYaw<L: crate::layout::Layout> {
+    p: OracleParams,
+    layout: L,
+    focal: f64,
+    cx: f64,
+    period: f64,
+    /// Onset gap (µs).
+    gap: f64,
+    /// Per cell: FAC trace, its time, last polarity.
+    fac: std::vec::Vec<(f64, f64, bool)>,
+    /// Per unit (`2 · cell + slot`): the oracle's state and its time.
+    units: std::vec::Vec<(OracleUnit, f64)>,
+    /// Units that may still spike without input, and whether each is listed.
+    active: std::vec::Vec<u32>,
+    listed: std::vec::Vec<bool>,
+    /// Spikes since the last output, `(time, unit)`.
+    pending: std::vec::Vec<(f64, u32)>,
+    /// Per unit: the decoder's view of its burst.
+    tracks: std::vec::Vec<SpikeTrack>,
+    /// Per cell: the last decoded onset `(time, own trace after it)`, and each unit's decoded
+    /// drive for it and whether that decode waits for the twin.
+    onsets: std::vec::Vec<Option<(f64, f64)>>,
+    decodes: std::vec::Vec<[(Option<f64>, bool); 2]>,
+    /// Cells with a decode waiting, in order.
+    waiting: std::collections::VecDeque<u32>,
+    field: OracleField,
+    next_out: Option<f64>,
+    /// TRG events before this time (µs) are not decoded (the warm-up).
+    decode_from: f64,
+    outputs: u64,
+    phase: u32,
+    last: Option<f64>,
+    last_event: f64,
+    /// Spikes received.
+    pub spikes: u64,
+    /// Decodes added to the field.
+    pub samples: u64,
+}
+
+/// The decoder's view of one unit (see [`crate::readout::spikes`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum SpikeTrack {
+    /// Nothing known.
+    Idle,
+    /// One spike of a burst from rest at `t1`.
+    Rest { t1: f64 },
+    /// An early spike at `t` ending an interval of `m` µs that started with current `y`.
+    Pert { t: f64, m: f64, y: f64 },
+    /// A spike at `t` after which the membrane charges with current `y`.
+    Clean { t: f64, y: f64 },
+    /// A spike at `t` with no usable history.
+    Unknown { t: f64 },
+}
+
+impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
+    /// The pipeline with the spike readout's settings (those of the calibrated readout's field),
+    /// principal point `(cx, cy)`, readout time constant `tau_a_us`, onset gap `gap_us` and
+    /// output period `period_us`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        p: OracleParams,
+        layout: L,
+        focal: f64,
+        (cx, cy): (f64, f64),
+        period_us: f64,
+        gap_us: f64,
+        tau_a_us: f64,
+    ) -> Self {
+        let n = layout.cell_count();
+        let field = OracleField::new(&layout, focal, (cx, cy), tau_a_us, period_us);
+        Self {
+            p,
+            focal,
+            cx,
+            period: period_us,
+            gap: gap_us,
+            fac: std::vec![(0.0, 0.0, false); n],
+            units: std::vec![(OracleUnit::default(), 0.0); 2 * n],
+            active: std::vec::Vec::new(),
+            listed: std::vec![false; 2 * n],
+            pending: std::vec::Vec::new(),
+            tracks: std::vec![SpikeTrack::Idle; 2 * n],
+            onsets: std::vec![None; n],
+            decodes: std::vec![[(None, false); 2]; n],
+            waiting: std::collections::VecDeque::new(),
+            field,
+            next_out: None,
+            decode_from: f64::INFINITY,
+            outputs: 0,
+            phase: 0,
+            last: None,
+            last_event: 0.0,
+            spikes: 0,
+            samples: 0,
+            layout,
+        }
+    }
+
+    /// `c = g / theta` per µs.
+    fn c(&self) -> f64 {
+        self.p.gain_per_us / self.p.theta
+    }
+
+    /// The current at the start of a clean charge of `l` µs.
+    fn x_of(&self, l: f64) -> f64 {
+        (l / self.p.tau_trg).exp() / (self.c() * l)
+    }
+
+    /// Smallest drive that makes a burst from rest.
+    fn min_drive(&self) -> f64 {
+        core::f64::consts::E / (self.c() * self.p.tau_trg)
+    }
+
+    /// One event at time `t` (µs); pushes `(t_us, yaw rad/s, flags)` for every output before
+    /// it.
+    pub fn event(
+        &mut self,
+        t: f64,
+        x: u16,
+        y: u16,
+        on: bool,
+        out: &mut std::vec::Vec<(f64, f64, u8)>,
+    ) {
+        match self.next_out {
+            None => {
+                self.next_out = Some(t + self.period);
+                self.decode_from = t + f64::from(crate::readout::shared::WARMUP_US);
+            }
+            Some(_) => self.emit_until(t, false, out),
+        }
+        self.last_event = t;
+        let (sw, sh) = self.layout.sensor();
+        if x >= sw || y >= sh {
+            return;
+        }
+        let Some(c) = self.layout.cell(x, y) else {
+            return;
+        };
+        let p = self.p;
+        let fac_at = |f: &(f64, f64, bool), t: f64| f.0 * (-(t - f.1).max(0.0) / p.tau_fac).exp();
+        let Some(&own) = self.fac.get(c) else {
+            return;
+        };
+        let own_now = fac_at(&own, t);
+        if let Some(f) = self.fac.get_mut(c) {
+            f.2 = on;
+        }
+        if own.2 == on && own_now >= p.w_fac * (-self.gap / p.tau_fac).exp() {
+            return;
+        }
+        let mask = self.layout.units(c);
+        let s = i32::from(self.layout.stride());
+        for (slot, dx) in [(0usize, -s), (1usize, s)] {
+            if mask & (1 << slot) == 0 {
+                continue;
+            }
+            let nb = u16::try_from(i32::from(x) + dx)
+                .ok()
+                .and_then(|nx| self.layout.cell(nx, y));
+            let i_fac = nb
+                .and_then(|n| self.fac.get(n))
+                .map_or(0.0, |f| fac_at(f, t));
+            let id = 2 * c + slot;
+            self.advance_unit(id, t);
+            if let Some((u, _)) = self.units.get_mut(id) {
+                u.i_trg += p.w_trg * i_fac;
+            }
+            if let Some(l) = self.listed.get_mut(id) {
+                if !*l {
+                    *l = true;
+                    self.active.push(id as u32);
+                }
+            }
+        }
+        if let Some(f) = self.fac.get_mut(c) {
+            *f = (own_now + p.w_fac, t, on);
+        }
+    }
+
+    /// Moves unit `id` to `t`, keeping its spikes.
+    fn advance_unit(&mut self, id: usize, t: f64) {
+        let p = self.p;
+        if let Some((u, tu)) = self.units.get_mut(id) {
+            let dt = (t - *tu).max(0.0);
+            let mut out: std::vec::Vec<f64> = std::vec::Vec::new();
+            p.advance(u, *tu, dt, &mut out);
+            *tu += dt;
+            self.pending
+                .extend(out.into_iter().map(|ts| (ts, id as u32)));
+        }
+    }
+
+    /// Emits every output up to `t` (µs) inclusive (end of the recording).
+    pub fn finish(&mut self, t: f64, out: &mut std::vec::Vec<(f64, f64, u8)>) {
+        self.emit_until(t, true, out);
+    }
+
+    fn emit_until(&mut self, t: f64, inclusive: bool, out: &mut std::vec::Vec<(f64, f64, u8)>) {
+        let Some(mut next) = self.next_out else {
+            return;
+        };
+        while next < t || (inclusive && next <= t) {
+            // Every unit that may spike, to the output time; then the spikes in time order.
+            let active = core::mem::take(&mut self.active);
+            let mut still = std::vec::Vec::with_capacity(active.len());
+            for id in active {
+                self.advance_unit(id as usize, next);
+                let alive = self.units.get(id as usize).is_some_and(|(u, _)| {
+                    u.refractory > 0.0 || self.p.next_crossing(u.u, u.i_trg, 1e9).is_some()
+                });
+                if alive {
+                    still.push(id);
+                } else if let Some(l) = self.listed.get_mut(id as usize) {
+                    *l = false;
+                }
+            }
+            self.active = still;
+            let mut spikes = core::mem::take(&mut self.pending);
+            spikes.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            for &(ts, id) in &spikes {
+                self.spike(ts, id);
+            }
+            // Decodes whose twin has answered or can no longer answer.
+            for _ in 0..self.waiting.len() {
+                let Some(c) = self.waiting.pop_front() else {
+                    break;
+                };
+                let mut done = true;
+                for u in 0..2 {
+                    if !self.resolve(c as usize, u, Some(next)) {
+                        done = false;
+                    }
+                }
+                if !done {
+                    self.waiting.push_back(c);
+                }
+            }
+            let warmup = u64::from(
+                (crate::readout::shared::WARMUP_US
+                    + self.p.tau_trg as u32
+                    + self.field.tau_a as u32)
+                    .div_ceil(self.period as u32),
+            );
+            let refresh = (crate::readout::shared::REFRESH_US / (self.period as u32).max(1)).max(1);
+            if self.phase == 0 {
+                self.last = self.field.estimate();
+            }
+            self.phase = (self.phase + 1) % refresh;
+            self.field.age();
+            let est = if self.outputs >= warmup {
+                self.last
+            } else {
+                None
+            };
+            self.outputs += 1;
+            let stale = if next - self.last_event > 100_000.0 {
+                crate::flags::STALE
+            } else {
+                0
+            };
+            match est {
+                Some(v) => out.push((next, v, stale)),
+                None => out.push((next, 0.0, stale | crate::flags::NO_EVIDENCE)),
+            }
+            next += self.period;
+        }
+        self.next_out = Some(next);
+    }
+
+    /// One spike of unit `id` at `t` (the fixed readout's state machine, in f64).
+    fn spike(&mut self, t: f64, id: u32) {
+        self.spikes += 1;
+        let p = self.p;
+        let (tau, t_ref) = (p.tau_trg, p.t_ref);
+        let c = self.c();
+        let Some(&track) = self.tracks.get(id as usize) else {
+            return;
+        };
+        // The last spike, and the charge since it ended its refractory period.
+        let t_last = match track {
+            SpikeTrack::Idle => None,
+            SpikeTrack::Rest { t1: t0 }
+            | SpikeTrack::Pert { t: t0, .. }
+            | SpikeTrack::Unknown { t: t0 }
+            | SpikeTrack::Clean { t: t0, .. } => Some(t0),
+        };
+        let l = t_last.map_or(f64::INFINITY, |t0| t - t0 - t_ref);
+        let y_next = (-t_ref / tau).exp() / (c * l);
+        let mut result = None;
+        let next = match track {
+            _ if l < 1.0 => SpikeTrack::Unknown { t },
+            SpikeTrack::Idle => SpikeTrack::Rest { t1: t },
+            _ if l > M_MAX_F64 => SpikeTrack::Rest { t1: t },
+            SpikeTrack::Rest { .. } | SpikeTrack::Pert { .. } | SpikeTrack::Unknown { .. }
+                if l > tau =>
+            {
+                SpikeTrack::Rest { t1: t }
+            }
+            SpikeTrack::Rest { t1 } => {
+                let x = self.x_of(l);
+                let delta = 1.0 / (c * x * (t_ref / tau).exp());
+                result = Some((t1 - delta, x * ((delta + t_ref) / tau).exp()));
+                SpikeTrack::Clean { t, y: y_next }
+            }
+            SpikeTrack::Pert { t: te, m, y } => {
+                let x = self.x_of(l);
+                let k = x * ((m + t_ref) / tau).exp() - y;
+                let n = (m / tau).exp() / c - y * m;
+                if k > 0.0 && n > 0.0 {
+                    let a = (m - n / k).max(0.0);
+                    result = Some((te - m + a, k * (-a / tau).exp()));
+                }
+                SpikeTrack::Clean { t, y: y_next }
+            }
+            SpikeTrack::Unknown { .. } => SpikeTrack::Clean { t, y: y_next },
+            SpikeTrack::Clean { y, .. } => {
+                let d = self.x_of(l).log2() - y.log2();
+                let tol = 2.0 * core::f64::consts::LOG2_E / l + 1.0 / 1024.0;
+                if l <= tau && d.abs() <= tol {
+                    SpikeTrack::Clean { t, y: y_next }
+                } else if l <= tau && d < -tol {
+                    SpikeTrack::Unknown { t }
+                } else {
+                    SpikeTrack::Pert { t, m: l, y }
+                }
+            }
+        };
+        if let Some(tr) = self.tracks.get_mut(id as usize) {
+            *tr = next;
+        }
+        if let Some((t_trg, d)) = result {
+            self.decoded(id as usize / 2, id as usize % 2, t_trg, d);
+        }
+    }
+
+    /// A decoded TRG event at `t_trg` with drive `d` of unit `u` of `cell`.
+    fn decoded(&mut self, cell: usize, u: usize, t_trg: f64, d: f64) {
+        let p = self.p;
+        let memory = 3.0 * p.tau_fac;
+        let last = self.onsets.get(cell).copied().flatten();
+        let same = last.is_some_and(|(t0, _)| (t_trg - t0).abs() <= SAME_ONSET_F64);
+        if let (Some((t0, own)), false) = (last, same) {
+            if t_trg < t0 {
+                // An earlier onset decoded late: its memory joins the later one.
+                if let Some(o) = self.onsets.get_mut(cell) {
+                    *o = Some((t0, own + p.w_fac * (-(t0 - t_trg) / p.tau_fac).exp()));
+                }
+                return;
+            }
+        }
+        if !same {
+            for v in 0..2 {
+                self.resolve(cell, v, None);
+            }
+            let own = match last {
+                Some((t0, own)) if t_trg - t0 <= memory => {
+                    p.w_fac + own * (-(t_trg - t0) / p.tau_fac).exp()
+                }
+                _ => p.w_fac,
+            };
+            if let Some(o) = self.onsets.get_mut(cell) {
+                *o = Some((t_trg, own));
+            }
+            if let Some(dd) = self.decodes.get_mut(cell) {
+                *dd = [(None, false); 2];
+            }
+        }
+        let gated = d >= self.min_drive();
+        if let Some(e) = self.decodes.get_mut(cell).and_then(|dd| dd.get_mut(u)) {
+            *e = (Some(d), gated);
+        }
+        if gated {
+            self.waiting.push_back(cell as u32);
+        }
+    }
+
+    /// Decides the waiting decode of unit `u` of `cell` (as the fixed readout does); `false`
+    /// when it still waits.
+    fn resolve(&mut self, cell: usize, u: usize, now: Option<f64>) -> bool {
+        let p = self.p;
+        let Some(&[e0, e1]) = self.decodes.get(cell) else {
+            return true;
+        };
+        let ((mine, waits), (twin_d, _)) = if u == 0 { (e0, e1) } else { (e1, e0) };
+        let (Some(d), true) = (mine, waits) else {
+            return true;
+        };
+        let Some((t_trg, own)) = self.onsets.get(cell).copied().flatten() else {
+            return true;
+        };
+        let c = self.c();
+        let answer = twin_d.or_else(|| match self.tracks.get(2 * cell + 1 - u).copied() {
+            Some(SpikeTrack::Rest { t1 }) if t1 > t_trg => Some(self.x_of(t1 - t_trg)),
+            Some(SpikeTrack::Pert { t, m, y }) if t > t_trg => {
+                let lat = t - t_trg;
+                let a = m - lat;
+                let n = (m / p.tau_trg).exp() / c - y * m;
+                (a >= 0.0 && n > 0.0).then(|| n / lat * (-a / p.tau_trg).exp())
+            }
+            _ => None,
+        });
+        let needed = d / 2.0;
+        let add = match (answer, now) {
+            (Some(a), _) => a <= needed,
+            (None, None) => true,
+            (None, Some(now)) => {
+                let waited = now - t_trg;
+                if waited < p.tau_trg && self.x_of(waited.max(1.0)) > needed {
+                    return false;
+                }
+                true
+            }
+        };
+        if let Some(e) = self.decodes.get_mut(cell).and_then(|dd| dd.get_mut(u)) {
+            e.1 = false;
+        }
+        if !add || t_trg < self.decode_from {
+            return true;
+        }
+        let ratio = d / (p.w_trg * own);
+        if !(ratio > 0.0 && ratio < 1.0) {
+            return true;
+        }
+        let dt_s = -p.tau_fac * ratio.ln() * 1e-6;
+        let (x, y) = self.layout.pixel(cell);
+        let dx = f64::from(x) - self.cx;
+        let g = self.focal + dx * dx / self.focal;
+        let w = f64::from(self.layout.stride()) / (dt_s * g);
+        self.field.add(x, y, if u == 1 { w } else { -w });
+        self.samples += 1;
+        true
+    }
+}
+
+/// Longest interval (µs) over which an early spike is decoded (as the fixed readout keeps it).
+const M_MAX_F64: f64 = 65_528.0;
+/// Decoded TRG events of one pixel at most this far apart (µs) are one onset.
+const SAME_ONSET_F64: f64 = 50.0;
+
+/// The field estimator of [`crate::readout::field`] in f64, one population: leaky signed
+/// histograms of `log2 |rate|` per region, decayed exactly each period; per region the median
+/// and its variance from the interquartile range; per column band and side the intercept at
+/// `Y = 0` of a weighted fit; the weighted median over the column bands where both sides have
+/// one, if at least `support` do; no answer when the decodes have all but stopped.
+pub struct OracleField {
+    focal: f64,
+    cx: f64,
+    cy: f64,
+    tau_a: f64,
+    period: f64,
+    min_samples: f64,
+    spread_floor: f64,
+    support: usize,
+    band: (f64, f64),
+    paired_bands: usize,
+    /// `[region][sign][bin]`.
+    hist: std::vec::Vec<[[f64; ORACLE_BINS]; 2]>,
+    recent: f64,
+    short: f64,
+}
+
+impl OracleField {
+    /// The field over the units of `layout`.
+    pub fn new<L: crate::layout::Layout>(
+        layout: &L,
+        focal: f64,
+        (cx, cy): (f64, f64),
+        tau_a_us: f64,
+        period_us: f64,
+    ) -> Self {
+        let fs = crate::readout::field::FieldSettings::DEFAULT;
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for c in 0..layout.cell_count() {
+            if layout.units(c) != 0 {
+                let (x, y) = layout.pixel(c);
+                x0 = x0.min(f64::from(x));
+                x1 = x1.max(f64::from(x) + 1.0);
+                y0 = y0.min(f64::from(y));
+                y1 = y1.max(f64::from(y) + 1.0);
+            }
+        }
+        let band = (
+            ((cx - x0).max(x1 - cx).max(1.0) / COLS as f64).max(1.0),
+            ((cy - y0).max(y1 - cy).max(1.0) / ROWS as f64).max(1.0),
+        );
+        let mut me = Self {
+            focal,
+            cx,
+            cy,
+            tau_a: tau_a_us,
+            period: period_us,
+            min_samples: f64::from(fs.min_samples_q16) / 65536.0,
+            spread_floor: f64::from(fs.spread_floor_q16) / 65536.0,
+            support: usize::from(fs.support),
+            band,
+            paired_bands: 0,
+            hist: std::vec![[[0.0; ORACLE_BINS]; 2]; 4 * COLS * ROWS],
+            recent: 0.0,
+            short: 0.0,
+        };
+        let mut seen = [[false; COLS]; 2];
+        for c in 0..layout.cell_count() {
+            if layout.units(c) != 0 {
+                let (x, y) = layout.pixel(c);
+                let (side, b, _, _) = me.region(x, y);
+                if let Some(s) = seen.get_mut(side).and_then(|s| s.get_mut(b)) {
+                    *s = true;
+                }
+            }
+        }
+        let [l, r] = seen;
+        me.paired_bands = l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count();
+        me
+    }
+
+    /// `(side, column band, vertical side, row band)` of a pixel.
+    fn region(&self, x: u16, y: u16) -> (usize, usize, usize, usize) {
+        let dx = f64::from(x) + 0.5 - self.cx;
+        let dy = f64::from(y) + 0.5 - self.cy;
+        let b = ((dx.abs() / self.band.0) as usize).min(COLS - 1);
+        let r = ((dy.abs() / self.band.1) as usize).min(ROWS - 1);
+        (usize::from(dx >= 0.0), b, usize::from(dy >= 0.0), r)
+    }
+
+    /// One decoded rate (rad/s, signed) at pixel `(x, y)`.
+    pub fn add(&mut self, x: u16, y: u16, w: f64) {
+        let (lo, hi) = (0.01f64.ln(), 20.0f64.ln());
+        let bin = (((w.abs().ln() - lo) / ((hi - lo) / ORACLE_BINS as f64)).floor())
+            .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize;
+        let (side, b, v, r) = self.region(x, y);
+        let idx = ((side * COLS + b) * 2 + v) * ROWS + r;
+        if let Some(bin) = self
+            .hist
+            .get_mut(idx)
+            .and_then(|h| h.get_mut(usize::from(w > 0.0)))
+            .and_then(|h| h.get_mut(bin))
+        {
+            *bin += 1.0;
+            self.recent += 1.0;
+        }
+    }
+
+    /// One output period passes.
+    pub fn age(&mut self) {
+        let keep = (-self.period / self.tau_a).exp();
+        for b in self.hist.iter_mut().flatten().flatten() {
+            *b *= keep;
+        }
+        let short_keep = (-self.period / f64::from(crate::readout::field::SHORT_TAU_US)).exp();
+        self.short = self.short * short_keep + self.recent;
+        self.recent = 0.0;
+    }
+
+    /// The rotation the field shows, if it shows one.
+    pub fn estimate(&self) -> Option<f64> {
+        let rate = self.hist.iter().flatten().flatten().sum::<f64>() / self.tau_a;
+        let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
+        if self.short / short_tau * 8.0 < rate {
+            return None;
+        }
+        let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
+        for b in 0..COLS {
+            let fits = [self.column_intercept(0, b), self.column_intercept(1, b)];
+            let est = match (fits, self.paired_bands == 0) {
+                ([Some((a, va)), Some((c, vc))], _) => Some((0.5 * (a + c), 0.25 * (va + vc))),
+                ([Some(a), None] | [None, Some(a)], true) => Some(a),
+                _ => None,
+            };
+            values.extend(est.map(|(v, var)| (v, 1.0 / var)));
+        }
+        if self.paired_bands > 0 && values.len() < self.support.min(self.paired_bands).max(1) {
+            return None;
+        }
+        let total: f64 = values.iter().map(|v| v.1).sum();
+        if values.is_empty() || total <= 0.0 {
+            return None;
+        }
+        values.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut acc = 0.0;
+        for &(x, w) in &values {
+            acc += w;
+            if 2.0 * acc >= total {
+                return Some(x.clamp(-20.0, 20.0));
+            }
+        }
+        values.last().map(|v| v.0.clamp(-20.0, 20.0))
+    }
+
+    /// Intercept at `Y = 0` of one column band's weighted fit on one side, and its variance.
+    fn column_intercept(&self, side: usize, band: usize) -> Option<(f64, f64)> {
+        let (mut s, mut r_sum) = (0.0, 0.0);
+        let mut half = [(0.0f64, 0.0f64, 0.0f64); 2];
+        let mut points = 0;
+        for v in 0..2 {
+            for row in 0..ROWS {
+                let Some((m, var)) = self.region_value(((side * COLS + band) * 2 + v) * ROWS + row)
+                else {
+                    continue;
+                };
+                let w = 1.0 / var;
+                let y =
+                    (row as f64 + 0.5) * self.band.1 / self.focal * if v == 0 { -1.0 } else { 1.0 };
+                s += w;
+                r_sum += w * m;
+                if let Some(h) = half.get_mut(v) {
+                    h.0 += w * y;
+                    h.1 += w * y * y;
+                    h.2 += w * m * y;
+                }
+                points += 1;
+            }
+        }
+        if points == 0 {
+            return None;
+        }
+        let (mut info, mut rhs) = (s, r_sum);
+        for &(sy, syy, sry) in &half {
+            if sy != 0.0 {
+                info -= sy * sy / (syy + 0.25);
+                rhs -= sy * sry / (syy + 0.25);
+            }
+        }
+        if info <= 0.0 {
+            return None;
+        }
+        Some((rhs / info, 1.0 / info))
+    }
+
+    /// `(median, variance of the median)` in region `i`.
+    fn region_value(&self, i: usize) -> Option<(f64, f64)> {
+        let [neg, pos] = self.hist.get(i)?;
+        let total: f64 = neg.iter().chain(pos.iter()).sum();
+        if total <= 0.0 || total < self.min_samples {
+            return None;
+        }
+        let (lo, hi) = (0.01f64.log2(), 20.0f64.log2());
+        let bw = (hi - lo) / ORACLE_BINS as f64;
+        let signed = neg
+            .iter()
+            .enumerate()
+            .rev()
+            .map(|(i, &m)| (i, m, false))
+            .chain(pos.iter().enumerate().map(|(i, &m)| (i, m, true)));
+        let mut q = [
+            (total / 4.0, 0.0f64),
+            (total / 2.0, 0.0),
+            (total * 0.75, 0.0),
+        ];
+        let mut pending = q.iter_mut().peekable();
+        let mut acc = 0.0;
+        for (i, m, positive) in signed {
+            while let Some((target, value)) = pending.next_if(|(t, _)| m > 0.0 && acc + m >= *t) {
+                let frac = (*target - acc) / m;
+                let f = if positive { frac } else { 1.0 - frac };
+                let v = (lo + (i as f64 + f) * bw).exp2();
+                *value = if positive { v } else { -v };
+            }
+            acc += m;
+        }
+        let [(_, q1), (_, median), (_, q3)] = q;
+        let iqr = (q3 - q1).abs().max(self.spread_floor);
+        Some((median, iqr * iqr / total.floor().max(1.0)))
+    }
+}

@@ -20,6 +20,7 @@ use crate::network::{active_words, InputFilter, NetError, NetState, NetStats, Ne
 use crate::pipeline::{Pipeline, ONSET_GAP_US};
 use crate::readout::calibrated::{default_tau_a_us, Calibrated, Calibration};
 use crate::readout::normalized::Normalized;
+use crate::readout::spikes::{SpikeCell, Spikes};
 use crate::readout::{Readout, YawSample};
 use crate::unit::Kernel;
 
@@ -60,6 +61,9 @@ pub enum ReadoutChoice {
     Calibrated,
     /// The paper's leaky integrator of spikes (needs the spiking units; unscaled).
     Normalized,
+    /// Yaw rate in rad/s from the spikes alone and the camera geometry (needs the spiking
+    /// units and the readout's own memory: [`StorageNeeds::spike_cells`]).
+    Spikes,
 }
 
 /// Everything that decides a run's output.
@@ -103,6 +107,13 @@ pub enum SettingsError {
     Layout,
     /// The storage given is smaller than the layout needs.
     Storage(NetError),
+    /// The spike readout's memory is smaller than [`StorageNeeds::spike_cells`].
+    SpikeCells {
+        /// Cells needed.
+        needed: usize,
+        /// Cells given.
+        given: usize,
+    },
 }
 
 impl core::fmt::Display for SettingsError {
@@ -114,6 +125,12 @@ impl core::fmt::Display for SettingsError {
             Self::TauA => write!(f, "tau_A must be 1 µs to {MAX_TAU_A_US} µs"),
             Self::Layout => write!(f, "the layout (with its stride) does not fit the sensor"),
             Self::Storage(e) => write!(f, "{e}"),
+            Self::SpikeCells { needed, given } => {
+                write!(
+                    f,
+                    "the spike readout needs {needed} cells of state, {given} given"
+                )
+            }
         }
     }
 }
@@ -186,12 +203,12 @@ impl Settings {
     }
 
     /// The readout time constant for a layout of `units` units (µs): the one given, else
-    /// [`default_tau_a_us`] for the calibrated readout and [`NORMALIZED_TAU_A_US`] for the
-    /// normalized one.
+    /// [`default_tau_a_us`] for the calibrated and spike readouts (the same field) and
+    /// [`NORMALIZED_TAU_A_US`] for the normalized one.
     pub const fn tau_a_us(&self, units: usize) -> u32 {
         match (self.tau_a_us, self.readout) {
             (Some(t), _) => t,
-            (None, ReadoutChoice::Calibrated) => default_tau_a_us(units),
+            (None, ReadoutChoice::Calibrated | ReadoutChoice::Spikes) => default_tau_a_us(units),
             (None, ReadoutChoice::Normalized) => NORMALIZED_TAU_A_US,
         }
     }
@@ -201,17 +218,26 @@ impl Settings {
     /// # Errors
     /// As [`Settings::layout`].
     pub fn storage(&self) -> Result<StorageNeeds, SettingsError> {
-        let cells = self.layout()?.cell_count();
+        let layout = self.layout()?;
+        let cells = layout.cell_count();
         Ok(match self.readout {
             ReadoutChoice::Calibrated => StorageNeeds {
                 cells,
                 unit_pairs: 0,
                 active_words: 0,
+                spike_cells: 0,
             },
             ReadoutChoice::Normalized => StorageNeeds {
                 cells,
                 unit_pairs: cells,
                 active_words: active_words(cells),
+                spike_cells: 0,
+            },
+            ReadoutChoice::Spikes => StorageNeeds {
+                cells,
+                unit_pairs: cells,
+                active_words: active_words(cells),
+                spike_cells: Spikes::cells_for(&layout),
             },
         })
     }
@@ -224,6 +250,20 @@ impl Settings {
         &self,
         kernel: &'a Kernel,
         state: NetState<'a>,
+    ) -> Result<Built<'a>, SettingsError> {
+        self.build_with(kernel, state, &mut [])
+    }
+
+    /// [`Settings::build`], with the spike readout's memory in `spike_cells` (at least
+    /// [`StorageNeeds::spike_cells`]; the other readouts need none).
+    ///
+    /// # Errors
+    /// When the settings do not validate or `state` or `spike_cells` is too small.
+    pub fn build_with<'a>(
+        &self,
+        kernel: &'a Kernel,
+        state: NetState<'a>,
+        spike_cells: &'a mut [SpikeCell],
     ) -> Result<Built<'a>, SettingsError> {
         let layout = self.layout()?;
         let tau_a_us = self.tau_a_us(layout.unit_count());
@@ -258,6 +298,32 @@ impl Settings {
                     self.period_us,
                 )?)
             }
+            ReadoutChoice::Spikes => {
+                let needed = Spikes::cells_for(&layout);
+                if spike_cells.len() < needed {
+                    return Err(SettingsError::SpikeCells {
+                        needed,
+                        given: spike_cells.len(),
+                    });
+                }
+                let cal = Calibration {
+                    tau_a_us,
+                    period_us: self.period_us,
+                    ..Calibration::new(self.focal_px, self.cx, self.cy)
+                };
+                let readout = Spikes::new(kernel, layout.clone(), cal, spike_cells);
+                let filter = InputFilter::Onsets {
+                    gap_us: ONSET_GAP_US,
+                };
+                Built::Spikes(OnLayout::new(
+                    kernel,
+                    layout,
+                    state,
+                    filter,
+                    readout,
+                    self.period_us,
+                )?)
+            }
         })
     }
 }
@@ -272,6 +338,9 @@ pub struct StorageNeeds {
     pub unit_pairs: usize,
     /// Words of the active bitset; 0 when the units do not run.
     pub active_words: usize,
+    /// The spike readout's per-pixel state ([`SpikeCell`]s, 24 bytes each); 0 for the other
+    /// readouts.
+    pub spike_cells: usize,
 }
 
 /// The layouts [`Settings`] choose from.
@@ -344,6 +413,8 @@ pub enum Built<'a> {
     Calibrated(OnLayout<'a, Calibrated>),
     /// The paper's normalized readout (unscaled).
     Normalized(OnLayout<'a, Normalized>),
+    /// The spike readout (rad/s).
+    Spikes(OnLayout<'a, Spikes<'a, SensorLayout>>),
 }
 
 /// A pipeline with readout `R` over one of the layouts [`Settings`] choose from.
@@ -422,6 +493,7 @@ macro_rules! each_pipeline {
         match $s {
             Built::Calibrated($p) => $e,
             Built::Normalized($p) => $e,
+            Built::Spikes($p) => $e,
         }
     };
 }
@@ -443,7 +515,7 @@ impl Built<'_> {
         each_pipeline!(self, p => p.net_stats())
     }
 
-    /// What the readout consumed: bursts decoded (calibrated) or spikes (normalized).
+    /// What the readout consumed: bursts decoded (calibrated, spikes) or spikes (normalized).
     pub fn outputs(&self) -> u64 {
         match self {
             Built::Calibrated(p) => p.readout().samples,
@@ -451,6 +523,7 @@ impl Built<'_> {
                 let s = p.net_stats();
                 s.spikes_lr + s.spikes_rl
             }
+            Built::Spikes(p) => p.readout().samples,
         }
     }
 

@@ -15,8 +15,9 @@ use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::Layout;
 use core_nostd::network::{Cell, NetState, UnitPair};
-use core_nostd::oracle::{OracleNetwork, OracleParams, OracleYaw};
+use core_nostd::oracle::{OracleNetwork, OracleParams, OracleSpikeYaw, OracleYaw};
 use core_nostd::params::TdeParams;
+use core_nostd::readout::spikes::SpikeCell;
 use core_nostd::readout::YawSample;
 use core_nostd::settings::{Built, LayoutChoice, ReadoutChoice, Settings};
 use core_nostd::unit::Kernel;
@@ -52,6 +53,9 @@ pub enum ReadoutKind {
     Calibrated,
     /// The paper's leaky spike integrator, divided by its maximum over the recording.
     Normalized,
+    /// Yaw rate in rad/s, causal, from the spikes alone (each burst's spike times) and the
+    /// intrinsics.
+    Spikes,
 }
 
 /// How to run a recording: what `host-sim run`'s flags say, before the recording is opened.
@@ -275,11 +279,12 @@ impl RunOptions {
         let readout = match self.readout {
             ReadoutKind::Calibrated => ReadoutChoice::Calibrated,
             ReadoutKind::Normalized => ReadoutChoice::Normalized,
+            ReadoutKind::Spikes => ReadoutChoice::Spikes,
         };
         let focal = match (camera.focal, readout) {
             (Some(f), _) => f,
             (None, ReadoutChoice::Normalized) => 1.0,
-            (None, ReadoutChoice::Calibrated) => {
+            (None, ReadoutChoice::Calibrated | ReadoutChoice::Spikes) => {
                 bail!("focal length unknown: pass --focal-px (and --cx)")
             }
         };
@@ -415,12 +420,13 @@ fn fixed(
     let mut cells = vec![Cell::default(); needs.cells];
     let mut units = vec![UnitPair::default(); needs.unit_pairs];
     let mut active = vec![0u32; needs.active_words];
+    let mut spike_cells = vec![SpikeCell::EMPTY; needs.spike_cells];
     let (mut outputs, mut ignored) = (0u64, 0u64);
     let mut restart = false;
     while let Some(first) = pieces.next_piece()? {
         let state = NetState::spiking(&mut cells, &mut units, &mut active);
         let mut p = settings
-            .build(kernel, state)
+            .build_with(kernel, state, &mut spike_cells)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         feed(
             &mut p,
@@ -466,6 +472,33 @@ fn float(
             restart,
         };
         match (settings.readout, camera.focal) {
+            (ReadoutChoice::Spikes, Some(f)) => {
+                let mut y = OracleSpikeYaw::new(
+                    p,
+                    layout.clone(),
+                    f,
+                    (camera.cx, camera.cy),
+                    period,
+                    f64::from(ONSET_GAP_US),
+                    tau_a,
+                );
+                let mut got = Vec::new();
+                let mut last = 0.0f64;
+                pieces.for_each(first, |ev| {
+                    last = rel(ev.t_us);
+                    y.event(last, ev.x, ev.y, ev.on, &mut got);
+                    for &(t, v, flags) in &got {
+                        out.push((t0 as f64 + t) * 1e-6, v, flags);
+                    }
+                    got.clear();
+                    out.flush_if_full()
+                })?;
+                y.finish(last, &mut got);
+                for &(t, v, flags) in &got {
+                    out.push((t0 as f64 + t) * 1e-6, v, flags);
+                }
+                outputs += y.samples;
+            }
             (ReadoutChoice::Calibrated, Some(f)) => {
                 let mut y = OracleYaw::new(
                     p,
@@ -674,7 +707,7 @@ pub fn progress_bar(len: u64) -> indicatif::ProgressBar {
 /// unknown or out of range.
 pub fn open_recording(input: &Path, opts: &RunOptions) -> Result<(formats::EventReader, Camera)> {
     let (size, focal_px, centre) = (opts.size, opts.focal_px, (opts.cx, opts.cy));
-    let needs_focal = opts.readout == ReadoutKind::Calibrated;
+    let needs_focal = matches!(opts.readout, ReadoutKind::Calibrated | ReadoutKind::Spikes);
     let mut reader = formats::EventReader::open(input, opts.format, false)?;
     reader.complete_from_folder(formats::Needs {
         size: size.is_none(),

@@ -5,7 +5,7 @@
 //! payload (little-endian), format version 1 (36 bytes) or 2 (40 bytes)
 //! offset size field
 //!      0    1 format version (1 or 2); a receiver refuses other versions
-//!      1    1 readout: 0 = calibrated (rad/s), 1 = normalized (version 2 only)
+//!      1    1 readout: 0 = calibrated (rad/s), 1 = normalized, 2 = spikes (rad/s) (1, 2: version 2 only)
 //!      2    1 layout: 0 = dense over the whole sensor, 1 = the paper's boxes, 2 = dense window
 //!      3    1 reserved (0)
 //!      4    2 sensor width (px, 1..=2048)
@@ -79,6 +79,7 @@ impl Settings {
         let readout = match self.readout {
             ReadoutChoice::Calibrated => 0u8,
             ReadoutChoice::Normalized => 1,
+            ReadoutChoice::Spikes => 2,
         };
         let tau = self.tau_a_us.unwrap_or(0);
         let (version, len) = if readout == 0 && tau == 0 {
@@ -131,6 +132,7 @@ impl Settings {
         let readout = match (p.get(1).copied().unwrap_or(0), version) {
             (0, _) => ReadoutChoice::Calibrated,
             (1, 2) => ReadoutChoice::Normalized,
+            (2, 2) => ReadoutChoice::Spikes,
             (other, _) => return Err(ConfigError::Readout(other)),
         };
         let layout = match p.get(2).copied().unwrap_or(0) {

@@ -33,17 +33,16 @@
 
 use fixed::types::{I16F16, U16F16};
 
-use super::field::{Field, FieldEstimate, FieldGeometry, FieldSettings, Population, COL_BANDS};
+use super::field::{Field, FieldSettings, Population};
+use super::shared::{field_over, min_burst_drive, OutputGate, RateDecoder};
 use super::Readout;
-use crate::flags;
 use crate::layout::Layout;
 use crate::log2::log2_q16;
 use crate::network::{NetSink, Trigger};
 use crate::params::{Trace, TAU_SLOW_US};
-use crate::unit::{Kernel, UnitState};
+use crate::unit::Kernel;
 
-/// `log2(1e6)` in Q16.16 (µs to s).
-const LOG2_1E6: i32 = 1_306_235;
+pub use super::shared::{REFRESH_US, WARMUP_US};
 
 /// The slow units are decoded only at pixels whose own fast FAC trace, after the event, is below
 /// `w_F` plus this: the pixel had no onset in the last ~46 ms, so the scene moves slowly there.
@@ -57,16 +56,6 @@ const DOMINANCE_LOG2: u32 = 1;
 
 /// Slow traces at or above this level are not decoded (they may have saturated).
 const SLOW_TRACE_LIMIT: Trace = Trace::const_from_int(8);
-
-/// Outputs during this long after the first output (µs) say "no evidence": every pixel's first
-/// event looks like an onset, so the first decodes time the order in which pixels woke up, not
-/// edges crossing.
-pub const WARMUP_US: u32 = 20_000;
-
-/// The field is read at most this often (µs): every 4th output at 1 kHz. Reading it costs about
-/// as much as a few hundred events on a Cortex-M4, and its histograms change over `tau_A`
-/// (10 ms), not over one period.
-pub const REFRESH_US: u32 = 4_000;
 
 /// Smallest histogram time constant of the slow units (µs): they see few edges per period.
 pub const SLOW_TAU_A_US: u32 = 100_000;
@@ -129,24 +118,16 @@ pub struct Calibrated {
     field: Field,
     /// `log2(tau_F)` of the paper's units and of the slow units (µs), Q16.16.
     log2_tau: [i32; 2],
-    /// `log2(stride)` in Q16.16.
-    log2_stride: i32,
+    /// From a crossing time to a rotation rate.
+    rates: RateDecoder,
     /// `w_T` bits (U16F16) for the normalisation.
     w_trg: u32,
-    /// `1 / f` in Q32.
-    inv_f_q32: u64,
     /// Smallest drive that makes a burst from rest.
     min_drive: Trace,
     /// Own fast trace (after the event) below which the slow units are decoded.
     slow_scene_own: Trace,
-    /// Outputs still to suppress (see [`WARMUP_US`]).
-    warmup_outputs: u32,
-    /// Outputs per reading of the field (see [`REFRESH_US`]), at least 1.
-    refresh: u32,
-    /// Outputs since the last reading, modulo `refresh`.
-    phase: u32,
-    /// The last reading.
-    last: (I16F16, u8),
+    /// Warm-up and refresh of the output.
+    gate: OutputGate,
     /// Decoded bursts so far.
     pub samples: u64,
     /// Of which from the slow units.
@@ -157,33 +138,24 @@ impl Calibrated {
     /// A readout for the network of `kernel` over `layout`.
     pub fn new<L: Layout>(kernel: &Kernel, layout: &L, cal: Calibration) -> Self {
         let p = kernel.params();
-        let f_bits = u64::from(cal.focal_px.to_bits().max(1));
-        let (cx, cy) = (i64::from(cal.cx.to_bits()), i64::from(cal.cy.to_bits()));
-        let (xs, ys) = unit_span(layout);
-        let geometry = FieldGeometry::spanning(cx, cy, i64::from(cal.focal_px.to_bits()), xs, ys);
-        let paired_bands = paired_bands(layout, &geometry);
         Self {
             cal,
-            field: Field::new(
-                geometry,
+            field: field_over(
+                layout,
+                (cal.focal_px, cal.cx, cal.cy),
                 cal.field,
                 [cal.tau_a_us, cal.tau_a_us.max(SLOW_TAU_A_US)],
                 cal.period_us,
-                paired_bands,
             ),
             log2_tau: [
                 log2_q16(u64::from(p.tau_fac_us), 0),
                 log2_q16(u64::from(TAU_SLOW_US), 0),
             ],
-            log2_stride: log2_q16(u64::from(layout.stride().max(1)), 0),
+            rates: RateDecoder::new(layout, cal.focal_px, cal.cx),
             w_trg: p.w_trg.to_bits(),
-            inv_f_q32: (1u64 << 48) / f_bits,
             min_drive: min_burst_drive(kernel),
             slow_scene_own: Trace::saturating_from_num(p.w_fac).saturating_add(SLOW_SCENE_MARGIN),
-            warmup_outputs: WARMUP_US.div_ceil(cal.period_us.max(1)),
-            refresh: (REFRESH_US / cal.period_us.max(1)).max(1),
-            phase: 0,
-            last: (I16F16::ZERO, flags::NO_EVIDENCE),
+            gate: OutputGate::new(cal.period_us, WARMUP_US),
             samples: 0,
             slow_samples: 0,
         }
@@ -206,84 +178,8 @@ impl Calibrated {
             return None;
         }
         let l = log2_q16(u64::from(drive.to_bits()), 0).saturating_sub(log2_q16(denom, 0));
-        if l >= 0 {
-            return None;
-        }
-        // dt = tau · (-l) · ln 2 (µs); log2 dt = log2 tau + log2(-l · ln 2).
-        let neg_l_ln2 = (u64::from(l.unsigned_abs()) * crate::log2::LN2_Q32) >> 32; // Q16
-        if neg_l_ln2 == 0 {
-            return None; // dt below the decoder's resolution (~1e-5 tau)
-        }
-        let log2_dt_us = log2_tau.saturating_add(log2_q16(neg_l_ln2, 16));
-        Some(log2_dt_us.saturating_sub(LOG2_1E6))
+        RateDecoder::log2_dt_s(l, log2_tau)
     }
-
-    /// `log2 |w|` (Q16.16) of a crossing of the stride in `2^log2_dt_s` s at column `x`.
-    fn rotation_rate(&self, log2_dt_s: i32, x: u16) -> i32 {
-        // G(x) = f + (x - cx)^2 / f in px, Q16.
-        let dx = i64::from(u32::from(x) << 16) - i64::from(self.cal.cx.to_bits());
-        let dx2 = dx.unsigned_abs().saturating_mul(dx.unsigned_abs()) >> 16; // Q16 px^2
-        let g = u64::from(self.cal.focal_px.to_bits()).saturating_add(
-            ((u128::from(dx2) * u128::from(self.inv_f_q32)) >> 32).min(u128::from(u64::MAX)) as u64,
-        );
-        self.log2_stride
-            .saturating_sub(log2_dt_s)
-            .saturating_sub(log2_q16(g, 16))
-    }
-}
-
-/// Bounding box of the pixels that have units: `((x_min, x_max), (y_min, y_max))`.
-fn unit_span<L: Layout>(layout: &L) -> ((u16, u16), (u16, u16)) {
-    let (mut x0, mut x1, mut y0, mut y1) = (u16::MAX, 0u16, u16::MAX, 0u16);
-    for c in 0..layout.cell_count() {
-        if layout.units(c) == 0 {
-            continue;
-        }
-        let (x, y) = layout.pixel(c);
-        x0 = x0.min(x);
-        x1 = x1.max(x);
-        y0 = y0.min(y);
-        y1 = y1.max(y);
-    }
-    if x0 > x1 {
-        return ((0, 0), (0, 0));
-    }
-    ((x0, x1), (y0, y1))
-}
-
-/// Column bands in which the layout has units on both sides of the principal point (0 when
-/// its regions never mirror, which switches the field to its unpaired fallback).
-fn paired_bands<L: Layout>(layout: &L, g: &FieldGeometry) -> u8 {
-    let mut seen = [[false; COL_BANDS]; 2];
-    for c in 0..layout.cell_count() {
-        if layout.units(c) == 0 {
-            continue;
-        }
-        let (side, band) = g.column(layout.pixel(c).0);
-        if let Some(s) = seen.get_mut(side).and_then(|s| s.get_mut(band)) {
-            *s = true;
-        }
-    }
-    let [l, r] = seen;
-    l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count() as u8
-}
-
-/// Smallest TRG drive that makes a unit at rest burst (`q·tau/e >= 1`).
-fn min_burst_drive(kernel: &Kernel) -> Trace {
-    let (mut lo, mut hi) = (0u32, crate::params::TRACE_MAX.to_bits());
-    while lo < hi {
-        let mid = lo + (hi - lo) / 2;
-        let u = UnitState {
-            i_trg: Trace::from_bits(mid),
-            ..UnitState::default()
-        };
-        if kernel.may_spike(&u) {
-            hi = mid;
-        } else {
-            lo = mid + 1;
-        }
-    }
-    Trace::from_bits(lo)
 }
 
 impl NetSink for Calibrated {
@@ -321,7 +217,7 @@ impl NetSink for Calibrated {
                 (dt, positive, Population::Slow)
             }
         };
-        let l2 = self.rotation_rate(dt, t.x);
+        let l2 = self.rates.rotation_rate(dt, t.x);
         self.field.add(pop, t.x, t.y, l2, positive);
         self.samples += 1;
     }
@@ -329,23 +225,6 @@ impl NetSink for Calibrated {
 
 impl Readout for Calibrated {
     fn output(&mut self, _t_us: u32) -> (I16F16, u8) {
-        // The field is read every `refresh` outputs (its histograms change over tau_A, not
-        // over one period); the outputs between repeat the last reading.
-        if self.phase == 0 {
-            self.last = match self.field.estimate() {
-                FieldEstimate::Rotation(v) => (I16F16::from_bits(v), 0),
-                FieldEstimate::NoEvidence => (I16F16::ZERO, flags::NO_EVIDENCE),
-            };
-        }
-        self.phase += 1;
-        if self.phase >= self.refresh {
-            self.phase = 0;
-        }
-        self.field.age();
-        if self.warmup_outputs > 0 {
-            self.warmup_outputs -= 1;
-            return (I16F16::ZERO, flags::NO_EVIDENCE);
-        }
-        self.last
+        self.gate.output(&mut self.field)
     }
 }

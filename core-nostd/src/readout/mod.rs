@@ -2,12 +2,17 @@
 //!
 //! - [`calibrated`]: the product's readout: yaw rate in rad/s, causal, from past events and the
 //!   camera's focal length and principal point only.
+//! - [`spikes`]: the same rates from the network's spikes alone (each unit's spike times),
+//!   through the same field estimator.
 //! - [`normalized`]: the paper's readout, a leaky integrator of right-to-left minus
 //!   left-to-right spikes; divided by its maximum over the recording afterwards (host only).
+//! - [`field`], [`shared`]: the rotation estimator and the pieces the rad/s readouts share.
 
 pub mod calibrated;
 pub mod field;
 pub mod normalized;
+pub mod shared;
+pub mod spikes;
 
 use fixed::types::I16F16;
 

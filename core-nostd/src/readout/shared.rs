@@ -1,0 +1,203 @@
+//! What the rad/s readouts ([`calibrated`](super::calibrated), [`spikes`](super::spikes))
+//! share: the smallest drive that makes a burst, from a decoded crossing time to a rotation
+//! rate, the [`Field`] over a layout, and the output gate (warm-up, refresh).
+
+use fixed::types::{I16F16, U16F16};
+
+use super::field::{Field, FieldEstimate, FieldGeometry, FieldSettings, COL_BANDS};
+use crate::flags;
+use crate::layout::Layout;
+use crate::log2::log2_q16;
+use crate::params::Trace;
+use crate::unit::{Kernel, UnitState};
+
+/// `log2(1e6)` in Q16.16 (µs to s).
+pub const LOG2_1E6: i32 = 1_306_235;
+
+/// Outputs during this long after the first output (µs) say "no evidence": every pixel's first
+/// event looks like an onset, so the first decodes time the order in which pixels woke up, not
+/// edges crossing.
+pub const WARMUP_US: u32 = 20_000;
+
+/// The field is read at most this often (µs): every 4th output at 1 kHz. Reading it costs about
+/// as much as a few hundred events on a Cortex-M4, and its histograms change over `tau_A`
+/// (10 ms), not over one period.
+pub const REFRESH_US: u32 = 4_000;
+
+/// Smallest TRG drive that makes a unit at rest burst (`q·tau/e >= 1`).
+pub fn min_burst_drive(kernel: &Kernel) -> Trace {
+    let (mut lo, mut hi) = (0u32, crate::params::TRACE_MAX.to_bits());
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        let u = UnitState {
+            i_trg: Trace::from_bits(mid),
+            ..UnitState::default()
+        };
+        if kernel.may_spike(&u) {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    Trace::from_bits(lo)
+}
+
+/// From the time an edge took to cross the stride to the rotation it implies, at a column.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RateDecoder {
+    /// Focal length (px, U16F16 bits).
+    focal_bits: u32,
+    /// Principal point column (px, U16F16 bits).
+    cx_bits: u32,
+    /// `log2(stride)` in Q16.16.
+    log2_stride: i32,
+    /// `1 / f` in Q32.
+    inv_f_q32: u64,
+}
+
+impl RateDecoder {
+    /// For a camera with focal length `focal_px` and principal point column `cx`, and the
+    /// layout's stride.
+    pub fn new<L: Layout>(layout: &L, focal_px: U16F16, cx: U16F16) -> Self {
+        let f_bits = u64::from(focal_px.to_bits().max(1));
+        Self {
+            focal_bits: focal_px.to_bits(),
+            cx_bits: cx.to_bits(),
+            log2_stride: log2_q16(u64::from(layout.stride().max(1)), 0),
+            inv_f_q32: (1u64 << 48) / f_bits,
+        }
+    }
+
+    /// `log2 dt` (Q16.16, dt in s) of a crossing whose drive was `2^l` (`l < 0`, Q16.16) of
+    /// what an edge at no delay would give, with FAC time constant `2^log2_tau` µs:
+    /// `dt = -tau · ln(2^l)`. `None` for `l >= 0` and below the decoder's resolution.
+    pub fn log2_dt_s(l: i32, log2_tau: i32) -> Option<i32> {
+        if l >= 0 {
+            return None;
+        }
+        // dt = tau · (-l) · ln 2 (µs); log2 dt = log2 tau + log2(-l · ln 2).
+        let neg_l_ln2 = (u64::from(l.unsigned_abs()) * crate::log2::LN2_Q32) >> 32; // Q16
+        if neg_l_ln2 == 0 {
+            return None; // dt below the decoder's resolution (~1e-5 tau)
+        }
+        let log2_dt_us = log2_tau.saturating_add(log2_q16(neg_l_ln2, 16));
+        Some(log2_dt_us.saturating_sub(LOG2_1E6))
+    }
+
+    /// `log2 |w|` (Q16.16) of a crossing of the stride in `2^log2_dt_s` s at column `x`:
+    /// `|w| = s / (dt (f + (x - c_x)^2 / f))`.
+    pub fn rotation_rate(&self, log2_dt_s: i32, x: u16) -> i32 {
+        // G(x) = f + (x - cx)^2 / f in px, Q16.
+        let dx = i64::from(u32::from(x) << 16) - i64::from(self.cx_bits);
+        let dx2 = dx.unsigned_abs().saturating_mul(dx.unsigned_abs()) >> 16; // Q16 px^2
+        let g = u64::from(self.focal_bits).saturating_add(
+            ((u128::from(dx2) * u128::from(self.inv_f_q32)) >> 32).min(u128::from(u64::MAX)) as u64,
+        );
+        self.log2_stride
+            .saturating_sub(log2_dt_s)
+            .saturating_sub(log2_q16(g, 16))
+    }
+}
+
+/// The [`Field`] over the units of `layout` for a camera with focal length `focal_px` and
+/// principal point `(cx, cy)`: regions spanning the pixels that have units, mirrored about the
+/// principal point; histogram time constants `tau_us` per population, aged by `period_us`.
+pub fn field_over<L: Layout>(
+    layout: &L,
+    (focal_px, cx, cy): (U16F16, U16F16, U16F16),
+    settings: FieldSettings,
+    tau_us: [u32; 2],
+    period_us: u32,
+) -> Field {
+    let (cx, cy) = (i64::from(cx.to_bits()), i64::from(cy.to_bits()));
+    let (xs, ys) = unit_span(layout);
+    let geometry = FieldGeometry::spanning(cx, cy, i64::from(focal_px.to_bits()), xs, ys);
+    let paired_bands = paired_bands(layout, &geometry);
+    Field::new(geometry, settings, tau_us, period_us, paired_bands)
+}
+
+/// Bounding box of the pixels that have units: `((x_min, x_max), (y_min, y_max))`.
+fn unit_span<L: Layout>(layout: &L) -> ((u16, u16), (u16, u16)) {
+    let (mut x0, mut x1, mut y0, mut y1) = (u16::MAX, 0u16, u16::MAX, 0u16);
+    for c in 0..layout.cell_count() {
+        if layout.units(c) == 0 {
+            continue;
+        }
+        let (x, y) = layout.pixel(c);
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    if x0 > x1 {
+        return ((0, 0), (0, 0));
+    }
+    ((x0, x1), (y0, y1))
+}
+
+/// Column bands in which the layout has units on both sides of the principal point (0 when
+/// its regions never mirror, which switches the field to its unpaired fallback).
+fn paired_bands<L: Layout>(layout: &L, g: &FieldGeometry) -> u8 {
+    let mut seen = [[false; COL_BANDS]; 2];
+    for c in 0..layout.cell_count() {
+        if layout.units(c) == 0 {
+            continue;
+        }
+        let (side, band) = g.column(layout.pixel(c).0);
+        if let Some(s) = seen.get_mut(side).and_then(|s| s.get_mut(band)) {
+            *s = true;
+        }
+    }
+    let [l, r] = seen;
+    l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count() as u8
+}
+
+/// When the field is read and what an output says: nothing during the warm-up (at least
+/// [`WARMUP_US`]), then the field's estimate, read every [`REFRESH_US`] and repeated between.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OutputGate {
+    /// Outputs still to suppress (see [`WARMUP_US`]).
+    warmup_outputs: u32,
+    /// Outputs per reading of the field (see [`REFRESH_US`]), at least 1.
+    refresh: u32,
+    /// Outputs since the last reading, modulo `refresh`.
+    phase: u32,
+    /// The last reading.
+    last: (I16F16, u8),
+}
+
+impl OutputGate {
+    /// The gate of a readout with output period `period_us` that says "no evidence" for the
+    /// first `warmup_us` (at least [`WARMUP_US`]).
+    pub fn new(period_us: u32, warmup_us: u32) -> Self {
+        Self {
+            warmup_outputs: warmup_us.max(WARMUP_US).div_ceil(period_us.max(1)),
+            refresh: (REFRESH_US / period_us.max(1)).max(1),
+            phase: 0,
+            last: (I16F16::ZERO, flags::NO_EVIDENCE),
+        }
+    }
+
+    /// One output period: reads `field` when due, ages it by one period, and says what to
+    /// output.
+    pub fn output(&mut self, field: &mut Field) -> (I16F16, u8) {
+        // The field is read every `refresh` outputs (its histograms change over tau_A, not
+        // over one period); the outputs between repeat the last reading.
+        if self.phase == 0 {
+            self.last = match field.estimate() {
+                FieldEstimate::Rotation(v) => (I16F16::from_bits(v), 0),
+                FieldEstimate::NoEvidence => (I16F16::ZERO, flags::NO_EVIDENCE),
+            };
+        }
+        self.phase += 1;
+        if self.phase >= self.refresh {
+            self.phase = 0;
+        }
+        field.age();
+        if self.warmup_outputs > 0 {
+            self.warmup_outputs -= 1;
+            return (I16F16::ZERO, flags::NO_EVIDENCE);
+        }
+        self.last
+    }
+}

@@ -1,0 +1,847 @@
+//! The spike readout: yaw rate in rad/s from the network's spikes alone (their times, per
+//! unit), the camera geometry and the unit's known parameters.
+//!
+//! # What a spike train says
+//! With `tau_T == tau_m == tau` (the fixed-point core's condition) the unit's membrane obeys
+//! `d(v e^(s/tau))/ds = c I_T(s) e^(s/tau)` with `c = g / theta`: in the frame scaled by
+//! `e^(s/tau)` the TRG current is a step function that jumps by `D e^(a/tau)` when a TRG event
+//! delivers the drive `D` at time `a`, and the membrane is its integral. After each spike the
+//! membrane restarts from 0 (after `t_ref`), so every interval between two spikes is a
+//! measurement, in closed form:
+//! - **Current from an interval.** If the membrane charges from 0 for `L` µs without a new
+//!   input before it spikes, the current when it started charging was
+//!   `x(L) = e^(L/tau) / (c L)` (only `L <= tau` is possible: the charge peaks at `tau`).
+//! - **A burst from rest.** Spikes at `t1`, `t2` with `L = t2 - t1 - t_ref`: the drive and the
+//!   TRG event's time are `D = x e^((Δ + t_ref)/tau)` and `t_trg = t1 - Δ`, with
+//!   `Δ = 1 / (c x e^(t_ref/tau))` (the first spike's latency).
+//! - **A drive during a burst.** Each interval predicts the next from the current it measured
+//!   (`y = x e^(-(L + t_ref)/tau)`). When a spike comes early, a TRG event fell in its
+//!   interval; the next interval measures the current after it, `x'`, and the early spike's
+//!   interval `M` pins the event's time `a`: with `K = x' e^((M + t_ref)/tau) - y`,
+//!   `M - a = (e^(M/tau)/c - y M) / K` and `D = K e^(-a/tau)`. The same holds after a burst has
+//!   ended (`y` below the spiking level), for `M` up to 65 ms.
+//!
+//! Spike times are whole µs, so a decoded drive is good to about 0.1 % (a 2-spike burst from
+//! rest: 0.15 %; test `spike_readout`). A drive is then an edge's travel time, as in the
+//! calibrated readout: `dt = -tau_F ln(D / (w_T I_F(TRG, t+)))`, where the TRG pixel's own FAC
+//! trace after the onset, `I_F(TRG, t+) = w_F (1 + Σ e^(-(t - t_k)/tau_F))` over its earlier
+//! onsets, is rebuilt from the TRG event times decoded at that pixel (either unit; onsets
+//! more than `3 tau_F` back are forgotten). Then `|w| = s / (dt (f + (x - c_x)^2 / f))`,
+//! positive for right-to-left units, and the rate goes to the same [`field`](super::field)
+//! estimator, read as often, as the calibrated readout. As there, only
+//! drives that make a burst from rest count, and of the two units of a pixel that answer one
+//! TRG event only the one whose drive is at least twice the other's: a decode waits (until an
+//! output time, at most until a twin at rest could no longer answer within that range) for the
+//! twin's first or early spike after the event, whose latency or interval gives its drive.
+//!
+//! The network's units have the paper's `tau_F` = 20 ms: a burst needs a drive of about
+//! `w_F / 14.7`, so edges slower than ~47 ms per stride (a 2-spike burst) give nothing to
+//! decode. The calibrated readout's slow units (`tau_F` = 100 ms) have no spiking counterpart
+//! in the network, so this readout says "no evidence" below about 0.2 rad/s (DAVIS346).
+//!
+//! Causal: the network hands a spike at `t` over by the first output time at or after `t`,
+//! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
+//! second spike (1-15 ms after the TRG event). Warm-up: TRG events in the first
+//! [`WARMUP_US`] are not decoded (every pixel's first event looks like an onset), and the
+//! outputs say "no evidence" for `WARMUP_US + tau + tau_A` (the first decodes after it take up
+//! to `tau`, the histograms `tau_A` to fill).
+//!
+//! # State
+//! One [`SpikeCell`] per pixel of the layout, from the caller (24 bytes, 12 per unit, on top
+//! of the spiking network's own state): each unit's burst in progress (where its membrane last
+//! started charging, 24 bits of µs; what the last interval said; 8 bytes), the pixel's last
+//! decoded onset and own trace, and each unit's decoded drive for it. Nothing is ever full and
+//! no spike goes untracked: a pool of bursts in progress would not be smaller, as up to 45 %
+//! of the pixels burst at once on the shared sequences (a drone's fast turn), and a pool that
+//! overflows drops decodes unevenly (a pixel that keeps bursting keeps its slot). A sweep
+//! visits every cell every 4 s and forgets what is older than `M` (65 ms) or the own-trace
+//! memory, so that no stored time is read across its wrap. Decodes waiting for a twin's answer
+//! sit in a ring of [`WAITING`] entries in the readout; when it is full, the oldest is decided
+//! without waiting.
+
+use fixed::types::I16F16;
+
+use super::calibrated::Calibration;
+use super::field::{Field, Population};
+use super::shared::{field_over, min_burst_drive, OutputGate, RateDecoder, LOG2_1E6, WARMUP_US};
+use super::Readout;
+use crate::layout::{Dir, Layout};
+use crate::log2::{exp2_q16, log2_q16};
+use crate::network::{NetSink, Spike};
+use crate::params::Trace;
+use crate::time::EventTime;
+use crate::unit::Kernel;
+
+/// `log2(e)` in Q32.
+const LOG2E_Q32: u64 = 6_196_328_019;
+/// `log2(e)` in Q16.
+const LOG2E_Q16: i64 = 94_548;
+
+/// Decodes that may wait for the twin unit's answer at once.
+pub const WAITING: usize = 1024;
+
+/// Two decodes of one pixel whose TRG event times differ by at most this (µs) answer the
+/// same onset (decoded times are within a few µs of the true ones, rarely tens).
+const SAME_ONSET_US: u32 = 50;
+
+/// A unit's drive must be at least `2^DOMINANCE_LOG2` times its twin's (the unit at the same
+/// pixel facing the other way) when both answer one TRG event.
+const DOMINANCE_LOG2: i32 = 1;
+
+/// Every cell is visited by the sweep at least this often (µs), well within the 2^23 µs a
+/// 24-bit time can be told from.
+const SWEEP_PERIOD_US: u32 = 4_000_000;
+
+/// `log2` values are kept in 16 bits with 10 fractional bits.
+const L2_SHIFT: u32 = 6;
+
+/// Q16.16 to the stored Q5.10 (rounded, saturating; never `i16::MIN`, which means none).
+#[inline]
+fn l2_pack(v: i32) -> i16 {
+    ((v.saturating_add(1 << (L2_SHIFT - 1))) >> L2_SHIFT).clamp(-i16::MAX as i32, i16::MAX as i32)
+        as i16
+}
+
+/// The stored Q5.10 to Q16.16.
+#[inline]
+fn l2_unpack(v: i16) -> i32 {
+    i32::from(v) << L2_SHIFT
+}
+
+/// µs from a 24-bit time `s` to `t`, when `t` is not before it (within 2^23 µs).
+#[inline]
+fn since24(t: u32, s: u32) -> Option<u32> {
+    let d = t.wrapping_sub(s) & 0x00FF_FFFF;
+    (d < 1 << 23).then_some(d)
+}
+
+/// States of a tracked unit (top 3 bits of [`Track::packed`]).
+mod state {
+    /// Nothing known: the next spike starts a burst from rest.
+    pub const IDLE: u32 = 0;
+    /// One spike of a burst from rest seen; the next interval decodes it.
+    pub const REST: u32 = 1;
+    /// A spike came early (a TRG event in its interval `M`); the next interval decodes it.
+    pub const PERT: u32 = 2;
+    /// The current at the last charging start is known (`l2y`).
+    pub const CLEAN: u32 = 3;
+    /// A spike with no usable history: the next interval measures the current, decodes
+    /// nothing.
+    pub const UNKNOWN: u32 = 4;
+}
+
+/// `M` is kept in steps of `2^M_SHIFT` µs, up to [`M_MAX_US`].
+const M_SHIFT: u32 = 3;
+/// Longest early-spike interval kept (µs): 13 bits of 8 µs.
+const M_MAX_US: u32 = ((1 << 13) - 1) << M_SHIFT;
+
+/// One unit's burst in progress. 8 bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C)]
+struct Track {
+    /// Bits 23..0: where the membrane last started charging, the last spike's time plus
+    /// `t_ref` (µs, modulo 2^24); bits 31..24: one byte of the pixel's own trace (see
+    /// [`SpikeCell`]).
+    s_ref: u32,
+    /// State (bits 31..29), `M` of a [`state::PERT`] in 8 µs steps (bits 28..16), and `log2`
+    /// of the current (Q5.10, bits 15..0) at `s_ref` ([`state::CLEAN`]) or at the start of
+    /// the early spike's interval ([`state::PERT`]).
+    packed: u32,
+}
+
+impl Track {
+    const IDLE: Self = Self {
+        s_ref: 0,
+        packed: 0,
+    };
+
+    #[inline]
+    fn s_ref(&self) -> u32 {
+        self.s_ref & 0x00FF_FFFF
+    }
+
+    #[inline]
+    fn set_s_ref(&mut self, t: u32) {
+        self.s_ref = (self.s_ref & 0xFF00_0000) | (t & 0x00FF_FFFF);
+    }
+
+    #[inline]
+    fn state(&self) -> u32 {
+        self.packed >> 29
+    }
+
+    /// `log2 y` (Q16.16).
+    #[inline]
+    fn l2y(&self) -> i32 {
+        l2_unpack(self.packed as u16 as i16)
+    }
+
+    /// `M` (µs).
+    #[inline]
+    fn m_us(&self) -> u32 {
+        ((self.packed >> 16) & 0x1FFF) << M_SHIFT
+    }
+
+    #[inline]
+    fn set(&mut self, st: u32, m_us: u32, l2y: i32) {
+        let m = (m_us.saturating_add(1 << (M_SHIFT - 1)) >> M_SHIFT).min(0x1FFF);
+        self.packed = (st << 29) | (m << 16) | u32::from(l2_pack(l2y) as u16);
+    }
+
+    /// The full time (µs) of the last spike, given a time `now` at or after it.
+    #[inline]
+    fn last_spike(&self, now: u32, t_ref: u32) -> u32 {
+        now.wrapping_sub(now.wrapping_sub(self.s_ref()) & 0x00FF_FFFF)
+            .wrapping_sub(t_ref)
+    }
+}
+
+/// What the spike readout keeps of one pixel: its two units' bursts in progress, its last
+/// decoded onset with its own trace, and each unit's decoded drive for that onset. 24 bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
+pub struct SpikeCell {
+    /// Its two units, in [`Dir`] slot order (their top bytes hold the own trace, U4F12:
+    /// high byte in unit 0, low byte in unit 1; 0 = no onset).
+    units: [Track; 2],
+    /// Time of the last decoded onset (µs, bits 31..2) and, in bit `u`, whether unit `u`'s
+    /// decode of it waits for its twin.
+    onset: u32,
+    /// `log2 D` (Q5.10) each unit decoded for that onset; `i16::MIN` = none.
+    l2d: [i16; 2],
+}
+
+impl SpikeCell {
+    /// A pixel with nothing in progress (for static arrays).
+    pub const EMPTY: Self = Self {
+        units: [Track::IDLE; 2],
+        onset: 0,
+        l2d: [i16::MIN; 2],
+    };
+
+    /// Bytes of one cell's state.
+    pub const BYTES: usize = core::mem::size_of::<Self>();
+
+    /// The own trace after the last onset (U4F12 bits; 0 = none).
+    #[inline]
+    fn own_bits(&self) -> u32 {
+        let [a, b] = self.units;
+        ((a.s_ref >> 24) << 8) | (b.s_ref >> 24)
+    }
+
+    #[inline]
+    fn own(&self) -> Trace {
+        Trace::from_bits(self.own_bits() << 15)
+    }
+
+    #[inline]
+    fn set_own(&mut self, own: Option<Trace>) {
+        let bits = own.map_or(0, |o| ((o.to_bits() + (1 << 14)) >> 15).clamp(1, 0xFFFF));
+        let [a, b] = &mut self.units;
+        a.s_ref = (a.s_ref & 0x00FF_FFFF) | ((bits >> 8) << 24);
+        b.s_ref = (b.s_ref & 0x00FF_FFFF) | ((bits & 0xFF) << 24);
+    }
+
+    /// The last onset's time (µs, to 4 µs), if there is one.
+    #[inline]
+    fn t_onset(&self) -> Option<u32> {
+        (self.own_bits() != 0).then_some(self.onset & !3)
+    }
+
+    #[inline]
+    fn waits(&self, u: usize) -> bool {
+        self.onset & (1 << u) != 0
+    }
+
+    #[inline]
+    fn set_waits(&mut self, u: usize, on: bool) {
+        if on {
+            self.onset |= 1 << u;
+        } else {
+            self.onset &= !(1 << u);
+        }
+    }
+}
+
+impl Default for SpikeCell {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+/// A decoded TRG event: its time and the drive it delivered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Decoded {
+    /// Time of the TRG event (µs).
+    pub t_us: u32,
+    /// `log2` of its drive `D = w_T I_F(FAC, t-)` (Q16.16).
+    pub log2_drive: i32,
+    /// Whether it started a burst from rest (else it came during or after one).
+    pub from_rest: bool,
+}
+
+/// The unit's constants and the closed forms of the module documentation, in fixed point
+/// (Q16.16 logarithms, integer µs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BurstDecoder {
+    /// `tau = tau_T = tau_m` (µs).
+    tau_us: u32,
+    /// `t_ref` (µs).
+    t_ref_us: u32,
+    /// `log2(e) / tau` per µs, Q32.
+    inv_tau_q32: u64,
+    /// `log2 c`, `c = g / theta` per µs (Q16.16).
+    log2_c: i32,
+    /// `log2 e^(t_ref/tau)` (Q16.16).
+    l2_tref: i32,
+    /// `log2` of the smallest drive that makes a burst from rest (Q16.16).
+    l2_min_drive: i32,
+}
+
+impl BurstDecoder {
+    /// The decoder of `kernel`'s unit.
+    pub fn new(kernel: &Kernel) -> Self {
+        let p = kernel.params();
+        let tau = p.tau_trg_us.max(1);
+        let mut d = Self {
+            tau_us: tau,
+            t_ref_us: p.t_ref_us,
+            inv_tau_q32: LOG2E_Q32 / u64::from(tau),
+            log2_c: log2_q16(u64::from(p.gain_per_s), 0)
+                .saturating_sub(log2_q16(u64::from(p.theta.to_bits()), 16))
+                .saturating_sub(LOG2_1E6),
+            l2_tref: 0,
+            l2_min_drive: log2_q16(u64::from(min_burst_drive(kernel).to_bits()), 27),
+        };
+        d.l2_tref = d.l2_time(p.t_ref_us);
+        d
+    }
+
+    /// `log2 e^(us/tau)` (Q16.16) of a whole number of µs.
+    #[inline]
+    fn l2_time(&self, us: u32) -> i32 {
+        let us = u64::from(us.min(1 << 24));
+        ((us * self.inv_tau_q32) >> 16).min(i32::MAX as u64) as i32
+    }
+
+    /// `log2 e^(t/tau)` (Q16.16) of a time in Q16 µs (non-negative).
+    #[inline]
+    fn l2_time_q16(&self, t_q16: i64) -> i32 {
+        let t = t_q16.clamp(0, 1 << 40) as u64;
+        ((u128::from(t) * u128::from(self.inv_tau_q32)) >> 32).min(i32::MAX as u128) as i32
+    }
+
+    /// `log2 x(L)`: the current at the start of a clean charge of `L >= 1` µs.
+    #[inline]
+    fn l2x(&self, l_us: u32) -> i32 {
+        self.l2_time(l_us)
+            .saturating_sub(self.log2_c)
+            .saturating_sub(log2_q16(u64::from(l_us.max(1)), 0))
+    }
+
+    /// `log2 y`: the current at the next charging start after a clean charge of `L` µs.
+    #[inline]
+    fn l2y_after(&self, l_us: u32) -> i32 {
+        self.log2_c
+            .saturating_neg()
+            .saturating_sub(log2_q16(u64::from(l_us.max(1)), 0))
+            .saturating_sub(self.l2_tref)
+    }
+
+    /// `log2` of the smallest drive that makes a burst from rest (Q16.16).
+    pub fn log2_min_drive(&self) -> i32 {
+        self.l2_min_drive
+    }
+
+    /// A burst from rest with first spike at `t1` and the next charge lasting `l_us`.
+    fn burst_from_rest(&self, t1: u32, l_us: u32) -> Option<Decoded> {
+        let l2x = self.l2x(l_us);
+        // Δ = 1 / (c x e^(t_ref/tau)), µs Q16.
+        let l2_delta = self
+            .log2_c
+            .saturating_add(l2x)
+            .saturating_add(self.l2_tref)
+            .saturating_neg();
+        let delta_q16 = i64::from(exp2_q16(l2_delta));
+        let l2d = l2x.saturating_add(
+            self.l2_time_q16(delta_q16.saturating_add(i64::from(self.t_ref_us) << 16)),
+        );
+        let delta_us = ((delta_q16 + (1 << 15)) >> 16).clamp(0, i64::from(u32::MAX)) as u32;
+        Some(Decoded {
+            t_us: t1.wrapping_sub(delta_us),
+            log2_drive: l2d,
+            from_rest: true,
+        })
+    }
+
+    /// A TRG event in the interval of `m_us` µs that started at `s0` with current `2^l2yb`,
+    /// whose next charge (after the early spike) lasted `l_us`.
+    fn perturbed(&self, s0: u32, m_us: u32, l2yb: i32, l_us: u32) -> Option<Decoded> {
+        let l2x = self.l2x(l_us);
+        let m = m_us.min(1 << 24);
+        // K = x' e^((M + t_ref)/tau) - y  (Q16).
+        let a_term = i64::from(exp2_q16(
+            l2x.saturating_add(self.l2_time(m.saturating_add(self.t_ref_us))),
+        ));
+        let yb = i64::from(exp2_q16(l2yb));
+        let k = a_term - yb;
+        if k <= 0 {
+            return None;
+        }
+        // N = e^(M/tau) / c - y M  (Q16, µs x current).
+        let n = i64::from(exp2_q16(self.l2_time(m).saturating_sub(self.log2_c)))
+            - yb.saturating_mul(i64::from(m));
+        if n <= 0 {
+            return None;
+        }
+        // M - a = N / K (Q16 µs); the event may have come during the refractory period before
+        // the interval (a < 0), then it counts from the interval's start.
+        let ma_q16 = (n << 16) / k;
+        let a_q16 = ((i64::from(m) << 16) - ma_q16).max(0);
+        let l2d = log2_q16(k as u64, 16).saturating_sub(self.l2_time_q16(a_q16));
+        let a_us = ((a_q16 + (1 << 15)) >> 16).clamp(0, i64::from(m)) as u32;
+        Some(Decoded {
+            t_us: s0.wrapping_add(a_us),
+            log2_drive: l2d,
+            from_rest: false,
+        })
+    }
+
+    /// `log2` of the drive of a TRG event at `t_trg` that moved a unit whose membrane started
+    /// charging at `s0` with current `2^l2yb` (`-inf` for a unit at rest) to spike at `t`
+    /// (the twin's answer to an event another unit decoded).
+    fn drive_of_spike(&self, t_trg: u32, s0: Option<(u32, i32)>, t: u32) -> Option<i32> {
+        let lat = EventTime::from_us(t).since(EventTime::from_us(t_trg))?;
+        match s0 {
+            None => {
+                // From rest: c D lat e^(-lat/tau) = 1.
+                (lat >= 1).then(|| self.l2x(lat))
+            }
+            Some((s0, l2yb)) => {
+                let m = EventTime::from_us(t).since(EventTime::from_us(s0))?;
+                let a = m.checked_sub(lat)?;
+                // c e^(-M/tau) [y M + K (M - a)] = 1  =>  K = (e^(M/tau)/c - y M) / (M - a).
+                let yb = i64::from(exp2_q16(l2yb));
+                let n = i64::from(exp2_q16(self.l2_time(m).saturating_sub(self.log2_c)))
+                    - yb.saturating_mul(i64::from(m));
+                if n <= 0 || lat == 0 {
+                    return None;
+                }
+                Some(
+                    log2_q16(n as u64, 16)
+                        .saturating_sub(log2_q16(u64::from(lat), 0))
+                        .saturating_sub(self.l2_time(a)),
+                )
+            }
+        }
+    }
+
+    /// The TRG events a unit's spike train (in time order, from rest) shows, by the rules of
+    /// the readout (the unit tracked alone: no twin, no pixel memory).
+    pub fn decode_train(&self, spikes: &[u32], mut out: impl FnMut(Decoded)) {
+        let mut tr = Track::IDLE;
+        for &t in spikes {
+            if let Some(d) = self.spike(&mut tr, t, true) {
+                out(d);
+            }
+        }
+    }
+
+    /// One spike of a tracked unit at `t`; `fresh` says whether the unit may be taken to start
+    /// from rest when it has no usable history. Returns the TRG event the spike completes, if
+    /// any.
+    fn spike(&self, tr: &mut Track, t: u32, fresh: bool) -> Option<Decoded> {
+        let first = if fresh { state::REST } else { state::UNKNOWN };
+        let s_prev = tr.s_ref();
+        let since = since24(t, s_prev);
+        tr.set_s_ref(t.wrapping_add(self.t_ref_us));
+        let Some(since) = since.filter(|&s| s >= 1) else {
+            // Within the refractory period, or out of order: nothing to measure.
+            tr.set(state::UNKNOWN, 0, 0);
+            return None;
+        };
+        let st = tr.state();
+        if st == state::IDLE || since > M_MAX_US {
+            tr.set(first, 0, 0);
+            return None;
+        }
+        match st {
+            state::REST | state::PERT | state::UNKNOWN => {
+                if since > self.tau_us {
+                    // Not a clean charge: the last spike ended its burst.
+                    tr.set(first, 0, 0);
+                    return None;
+                }
+                let (m, l2yb) = (tr.m_us(), tr.l2y());
+                tr.set(state::CLEAN, 0, self.l2y_after(since));
+                // Times from here on are whole µs of the event clock (the 24 bits of `s_ref`
+                // are only ever compared with a spike less than 2^23 µs later).
+                let t_prev = t.wrapping_sub(since).wrapping_sub(self.t_ref_us);
+                match st {
+                    state::REST => self.burst_from_rest(t_prev, since),
+                    state::PERT => self.perturbed(t_prev.wrapping_sub(m), m, l2yb, since),
+                    _ => None,
+                }
+            }
+            _ => {
+                // CLEAN: does the spike come when the measured current says it should?
+                let (l2x, l2y) = (self.l2x(since), tr.l2y());
+                let tol =
+                    ((2 * LOG2E_Q16) / i64::from(since)).min(1 << 16) as i32 + (1 << L2_SHIFT);
+                if since <= self.tau_us && (l2x - l2y).abs() <= tol {
+                    tr.set(state::CLEAN, 0, self.l2y_after(since));
+                } else if since <= self.tau_us && l2x < l2y - tol {
+                    // Later than possible: the model lost track.
+                    tr.set(state::UNKNOWN, 0, 0);
+                } else {
+                    tr.set(state::PERT, since, l2y);
+                }
+                None
+            }
+        }
+    }
+}
+
+/// The spike readout's state: its per-pixel memory (borrowed), the field's histograms and
+/// the decoding constants.
+pub struct Spikes<'a, L: Layout> {
+    cal: Calibration,
+    layout: L,
+    kernel: &'a Kernel,
+    field: Field,
+    gate: OutputGate,
+    rates: RateDecoder,
+    decoder: BurstDecoder,
+    /// `log2(tau_F)` (µs, Q16.16).
+    log2_tau_fac: i32,
+    /// `log2(w_T)` (Q16.16).
+    log2_w_trg: i32,
+    /// The own-trace memory, `3 tau_F` (µs).
+    memory_us: u32,
+    /// One per cell.
+    cells: &'a mut [SpikeCell],
+    /// Cells swept per output, and the next one.
+    sweep: (usize, usize),
+    /// The latest time seen (µs).
+    now: u32,
+    /// TRG events before this time (µs) are not decoded: the warm-up after the first output
+    /// (every pixel's first event looks like an onset).
+    decode_from: Option<u32>,
+    /// Decodes waiting for the twin's answer: `cell << 1 | unit`, a ring.
+    waiting: [u32; WAITING],
+    /// First entry of the ring.
+    wait_head: usize,
+    /// Entries in the ring.
+    wait_len: usize,
+    /// Decodes added to the field so far.
+    pub samples: u64,
+    /// Spikes received.
+    pub spikes: u64,
+    /// Decodes dropped because the twin unit answered the same TRG event about as strongly.
+    pub ambiguous: u64,
+}
+
+impl<'a, L: Layout> Spikes<'a, L> {
+    /// [`SpikeCell`]s the readout needs for `layout` (one per cell).
+    pub fn cells_for(layout: &L) -> usize {
+        layout.cell_count()
+    }
+
+    /// A readout for the network of `kernel` over `layout`, with its memory in `cells` (at
+    /// least [`Spikes::cells_for`]; pixels beyond the slice are not decoded).
+    pub fn new(
+        kernel: &'a Kernel,
+        layout: L,
+        cal: Calibration,
+        cells: &'a mut [SpikeCell],
+    ) -> Self {
+        let len = Self::cells_for(&layout).min(cells.len());
+        let cells = cells.get_mut(..len).unwrap_or_default();
+        cells.fill(SpikeCell::EMPTY);
+        let p = kernel.params();
+        let per_output = cells
+            .len()
+            .div_ceil((SWEEP_PERIOD_US / cal.period_us.max(1)).max(1) as usize)
+            .max(1);
+        let field = field_over(
+            &layout,
+            (cal.focal_px, cal.cx, cal.cy),
+            cal.field,
+            [cal.tau_a_us, cal.tau_a_us],
+            cal.period_us,
+        );
+        Self {
+            rates: RateDecoder::new(&layout, cal.focal_px, cal.cx),
+            // The warm-up's onsets are not decoded; the first onsets after it are decoded up to
+            // `tau` later, and the histograms fill over `tau_A`.
+            gate: OutputGate::new(
+                cal.period_us,
+                WARMUP_US
+                    .saturating_add(p.tau_trg_us)
+                    .saturating_add(cal.tau_a_us),
+            ),
+            decoder: BurstDecoder::new(kernel),
+            log2_tau_fac: log2_q16(u64::from(p.tau_fac_us), 0),
+            log2_w_trg: log2_q16(u64::from(p.w_trg.to_bits()), 16),
+            memory_us: p.tau_fac_us.saturating_mul(3),
+            sweep: (per_output, 0),
+            now: 0,
+            decode_from: None,
+            waiting: [0; WAITING],
+            wait_head: 0,
+            wait_len: 0,
+            samples: 0,
+            spikes: 0,
+            ambiguous: 0,
+            cal,
+            layout,
+            kernel,
+            field,
+            cells,
+        }
+    }
+
+    /// The settings.
+    pub fn calibration(&self) -> &Calibration {
+        &self.cal
+    }
+
+    /// Units bursting at `t` (whose last interval says they will spike again).
+    pub fn bursting(&self, t: u32) -> usize {
+        self.cells
+            .iter()
+            .flat_map(|c| c.units.iter())
+            .filter(|u| {
+                u.state() == state::CLEAN
+                    && u.l2y() >= self.decoder.l2_min_drive
+                    && since24(t, u.s_ref()).is_some_and(|d| d <= self.decoder.tau_us)
+            })
+            .count()
+    }
+
+    /// The own trace just after an onset at `t` of a pixel whose last onset was `(t0, own)`.
+    fn own_after(&self, last: Option<(u32, Trace)>, t: u32) -> Trace {
+        let w_fac = self.kernel.fac_input(Trace::ZERO);
+        match last {
+            Some((t0, own)) => match EventTime::from_us(t).since(EventTime::from_us(t0)) {
+                Some(age) if age <= self.memory_us => {
+                    self.kernel.fac_input(self.kernel.decay_fac(own, age))
+                }
+                _ => w_fac,
+            },
+            None => w_fac,
+        }
+    }
+
+    /// A decoded TRG event of unit `dir` at `cell`: the pixel's own trace, the gate, then the
+    /// decode waits for the twin's answer.
+    fn decoded(&mut self, cell: usize, dir: Dir, d: Decoded) {
+        let Some(c) = self.cells.get(cell).copied() else {
+            return;
+        };
+        let last = c.t_onset();
+        let dt = last.map_or(i32::MAX, |l| d.t_us.wrapping_sub(l) as i32);
+        let same = dt.unsigned_abs() <= SAME_ONSET_US + 4;
+        if !same && dt < 0 {
+            // An earlier onset decoded late: its memory joins the later one.
+            let w_fac = self.kernel.fac_input(Trace::ZERO);
+            let own = c
+                .own()
+                .saturating_add(self.kernel.decay_fac(w_fac, dt.unsigned_abs()));
+            if let Some(c) = self.cells.get_mut(cell) {
+                c.set_own(Some(own));
+            }
+            return;
+        }
+        if !same {
+            // A new onset: what waits for the last one is decided now.
+            for u in 0..2 {
+                self.resolve(cell, u, None);
+            }
+            let own = self.own_after(last.map(|t0| (t0, c.own())), d.t_us);
+            if let Some(c) = self.cells.get_mut(cell) {
+                c.onset = d.t_us & !3;
+                c.set_own(Some(own));
+                c.l2d = [i16::MIN; 2];
+            }
+        }
+        let u = dir.slot();
+        let Some(c) = self.cells.get_mut(cell) else {
+            return;
+        };
+        if let Some(l) = c.l2d.get_mut(u) {
+            *l = l2_pack(d.log2_drive);
+        }
+        if d.log2_drive < self.decoder.l2_min_drive {
+            return;
+        }
+        c.set_waits(u, true);
+        if self.wait_len >= WAITING {
+            let head = self.waiting.get(self.wait_head).copied().unwrap_or(0);
+            self.wait_head = (self.wait_head + 1) % WAITING;
+            self.wait_len -= 1;
+            self.resolve(head as usize >> 1, head as usize & 1, None);
+        }
+        let tail = (self.wait_head + self.wait_len) % WAITING;
+        if let Some(e) = self.waiting.get_mut(tail) {
+            *e = ((cell as u32) << 1) | u as u32;
+            self.wait_len += 1;
+        }
+    }
+
+    /// Decides the decode waiting at `cell`, unit `u`: added to the field when the twin
+    /// answered the same TRG event at most half as strongly, dropped when it answered more
+    /// strongly; with no answer yet, added once a twin at rest could no longer answer within
+    /// that range (at `now`), else left waiting (`false`). `now = None`: decide now.
+    fn resolve(&mut self, cell: usize, u: usize, now: Option<u32>) -> bool {
+        let decoder = self.decoder;
+        let Some(c) = self.cells.get(cell).copied() else {
+            return true;
+        };
+        let (Some(&l2d), Some(&twin_l2d), Some(twin), Some(t_trg)) = (
+            c.l2d.get(u),
+            c.l2d.get(1 - u),
+            c.units.get(1 - u),
+            c.t_onset(),
+        ) else {
+            return true;
+        };
+        if !c.waits(u) {
+            return true;
+        }
+        let answer = if twin_l2d != i16::MIN {
+            Some(l2_unpack(twin_l2d))
+        } else {
+            let t_spike = twin.last_spike(self.now, decoder.t_ref_us);
+            let after = EventTime::from_us(t_spike).is_after(EventTime::from_us(t_trg));
+            match twin.state() {
+                state::REST if after => decoder.drive_of_spike(t_trg, None, t_spike),
+                state::PERT if after => {
+                    let s0 = t_spike.wrapping_sub(twin.m_us());
+                    decoder.drive_of_spike(t_trg, Some((s0, twin.l2y())), t_spike)
+                }
+                _ => None,
+            }
+        };
+        let l2d = l2_unpack(l2d);
+        let needed = l2d.saturating_sub(DOMINANCE_LOG2 << 16);
+        let add = match (answer, now) {
+            (Some(l2), _) => l2 <= needed,
+            (None, None) => true,
+            (None, Some(now)) => {
+                // A twin at rest with a drive above `needed` would have spiked by now.
+                let waited = EventTime::from_us(now).elapsed_since(EventTime::from_us(t_trg));
+                if waited < decoder.tau_us && decoder.l2x(waited.max(1)) > needed {
+                    return false;
+                }
+                true
+            }
+        };
+        if let Some(c) = self.cells.get_mut(cell) {
+            c.set_waits(u, false);
+        }
+        if !add {
+            self.ambiguous += 1;
+            return true;
+        }
+        let warm = self
+            .decode_from
+            .is_some_and(|f| !EventTime::from_us(f).is_after(EventTime::from_us(t_trg)));
+        if !warm {
+            return true;
+        }
+        // dt = -tau_F ln(D / (w_T own)), then the rotation at the pixel's column.
+        let l = l2d
+            .saturating_sub(self.log2_w_trg)
+            .saturating_sub(log2_q16(u64::from(c.own().to_bits()), 27));
+        let Some(l2dt) = RateDecoder::log2_dt_s(l, self.log2_tau_fac) else {
+            return true;
+        };
+        let (x, y) = self.layout.pixel(cell);
+        let l2 = self.rates.rotation_rate(l2dt, x);
+        self.field
+            .add(Population::Fast, x, y, l2, u == Dir::RightToLeft.slot());
+        self.samples += 1;
+        true
+    }
+}
+
+impl<L: Layout> NetSink for Spikes<'_, L> {
+    const SPIKES: bool = true;
+
+    fn spike(&mut self, s: Spike) {
+        self.spikes += 1;
+        if EventTime::from_us(s.t_us).is_after(EventTime::from_us(self.now)) {
+            self.now = s.t_us;
+        }
+        let decoder = self.decoder;
+        let Some(d) = self
+            .cells
+            .get_mut(s.cell as usize)
+            .and_then(|c| c.units.get_mut(s.dir.slot()))
+            .and_then(|tr| decoder.spike(tr, s.t_us, true))
+        else {
+            return;
+        };
+        self.decoded(s.cell as usize, s.dir, d);
+    }
+}
+
+impl<L: Layout> Readout for Spikes<'_, L> {
+    fn output(&mut self, t_us: u32) -> (I16F16, u8) {
+        if EventTime::from_us(t_us).is_after(EventTime::from_us(self.now)) {
+            self.now = t_us;
+        }
+        if self.decode_from.is_none() {
+            // The first output comes one period after the first event.
+            self.decode_from = Some(
+                t_us.wrapping_sub(self.cal.period_us)
+                    .wrapping_add(WARMUP_US),
+            );
+        }
+        // Every spike up to `t_us` is in: decide what waits for a twin that has answered or can
+        // no longer answer.
+        for _ in 0..self.wait_len {
+            let e = self.waiting.get(self.wait_head).copied().unwrap_or(0);
+            self.wait_head = (self.wait_head + 1) % WAITING;
+            self.wait_len -= 1;
+            if !self.resolve(e as usize >> 1, e as usize & 1, Some(t_us)) {
+                let tail = (self.wait_head + self.wait_len) % WAITING;
+                if let Some(w) = self.waiting.get_mut(tail) {
+                    *w = e;
+                    self.wait_len += 1;
+                }
+            }
+        }
+        // Forget bursts and onsets too old to matter (a few cells per output, so that each is
+        // visited long before its times wrap).
+        let (per_output, mut next) = self.sweep;
+        let memory = self.memory_us;
+        for _ in 0..per_output.min(self.cells.len()) {
+            if next >= self.cells.len() {
+                next = 0;
+            }
+            if let Some(c) = self.cells.get_mut(next) {
+                for u in c.units.iter_mut() {
+                    if u.state() != state::IDLE
+                        && since24(t_us, u.s_ref()).is_none_or(|d| d > M_MAX_US)
+                    {
+                        u.packed = 0;
+                    }
+                }
+                let old = c.t_onset().is_some_and(|t0| {
+                    EventTime::from_us(t_us)
+                        .since(EventTime::from_us(t0))
+                        .is_none_or(|a| a > memory)
+                });
+                if old && !c.waits(0) && !c.waits(1) {
+                    c.set_own(None);
+                    c.l2d = [i16::MIN; 2];
+                }
+            }
+            next += 1;
+        }
+        self.sweep = (per_output, next);
+        self.gate.output(&mut self.field)
+    }
+}
