@@ -407,33 +407,23 @@ pub struct OracleYaw<L: crate::layout::Layout> {
     layout: L,
     focal: f64,
     cx: f64,
-    cy: f64,
-    /// Histogram time constant and output period (µs).
-    tau_a: f64,
+    /// Output period (µs).
     period: f64,
-    min_samples: f64,
-    spread_floor: f64,
-    support: usize,
     /// Onset gap (µs).
     gap: f64,
     /// Slow FAC time constant (µs).
     tau_slow: f64,
     /// Per cell: FAC trace, slow trace, their time, last polarity.
     fac: std::vec::Vec<(f64, f64, f64, bool)>,
-    /// Band width and height (px) of the regions.
-    band: (f64, f64),
-    paired_bands: usize,
-    /// `[region][population][sign][bin]` (population 0 = the paper's units, 1 = slow).
-    hist: std::vec::Vec<[[[f64; ORACLE_BINS]; 2]; 2]>,
+    /// The field of each population: 0 = the paper's units (over `tau_A`), 1 = the slow units
+    /// (over at least `SLOW_TAU_A_US`).
+    fields: [OracleField; 2],
     next_out: Option<f64>,
     /// Time of the first output (µs).
     first_out: f64,
     /// Outputs since the field was last read, and that reading.
     phase: u32,
     last: Option<f64>,
-    /// Decodes per population since the last output, and leaky over `SHORT_TAU_US`.
-    recent: [f64; 2],
-    short: [f64; 2],
     last_event: f64,
     /// Decoded bursts so far.
     pub samples: u64,
@@ -458,69 +448,26 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         tau_a_us: f64,
     ) -> Self {
         let n = layout.cell_count();
-        let fs = crate::readout::field::FieldSettings::DEFAULT;
-        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for c in 0..n {
-            if layout.units(c) != 0 {
-                let (x, y) = layout.pixel(c);
-                x0 = x0.min(f64::from(x));
-                x1 = x1.max(f64::from(x) + 1.0);
-                y0 = y0.min(f64::from(y));
-                y1 = y1.max(f64::from(y) + 1.0);
-            }
-        }
-        let band = (
-            ((cx - x0).max(x1 - cx).max(1.0) / COLS as f64).max(1.0),
-            ((cy - y0).max(y1 - cy).max(1.0) / ROWS as f64).max(1.0),
-        );
-        let mut me = Self {
+        let slow_tau = tau_a_us.max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
+        let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
+        let fields = [field(tau_a_us), field(slow_tau)];
+        Self {
             p,
             layout,
             focal,
             cx,
-            cy,
-            tau_a: tau_a_us,
             period: period_us,
-            min_samples: f64::from(fs.min_samples_q16) / 65536.0,
-            spread_floor: f64::from(fs.spread_floor_q16) / 65536.0,
-            support: usize::from(fs.support),
             gap: gap_us,
             tau_slow: f64::from(crate::params::TAU_SLOW_US),
             fac: std::vec![(0.0, 0.0, 0.0, false); n],
-            band,
-            paired_bands: 0,
-            hist: std::vec![[[[0.0; ORACLE_BINS]; 2]; 2]; 4 * COLS * ROWS],
+            fields,
             next_out: None,
             first_out: 0.0,
             phase: 0,
             last: None,
-            recent: [0.0; 2],
-            short: [0.0; 2],
             last_event: 0.0,
             samples: 0,
-        };
-        let mut seen = [[false; COLS]; 2];
-        for c in 0..n {
-            if me.layout.units(c) != 0 {
-                let (x, y) = me.layout.pixel(c);
-                let (side, b, _, _) = me.region(x, y);
-                if let Some(s) = seen.get_mut(side).and_then(|s| s.get_mut(b)) {
-                    *s = true;
-                }
-            }
         }
-        let [l, r] = seen;
-        me.paired_bands = l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count();
-        me
-    }
-
-    /// `(side, column band, vertical side, row band)` of a pixel.
-    fn region(&self, x: u16, y: u16) -> (usize, usize, usize, usize) {
-        let dx = f64::from(x) + 0.5 - self.cx;
-        let dy = f64::from(y) + 0.5 - self.cy;
-        let b = ((dx.abs() / self.band.0) as usize).min(COLS - 1);
-        let r = ((dy.abs() / self.band.1) as usize).min(ROWS - 1);
-        (usize::from(dx >= 0.0), b, usize::from(dy >= 0.0), r)
     }
 
     fn traces_at(&self, c: Option<usize>, t: f64) -> (f64, f64) {
@@ -629,22 +576,8 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let dx = f64::from(x) - self.cx;
         let g = self.focal + dx * dx / self.focal;
         let w = f64::from(self.layout.stride()) / (dt_s * g);
-        let (lo, hi) = (0.01f64.ln(), 20.0f64.ln());
-        let bin = (((w.ln() - lo) / ((hi - lo) / ORACLE_BINS as f64)).floor())
-            .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize;
-        let (side, b, v, r) = self.region(x, y);
-        let idx = ((side * COLS + b) * 2 + v) * ROWS + r;
-        if let Some(bin) = self
-            .hist
-            .get_mut(idx)
-            .and_then(|h| h.get_mut(pop))
-            .and_then(|h| h.get_mut(usize::from(positive)))
-            .and_then(|h| h.get_mut(bin))
-        {
-            *bin += 1.0;
-            if let Some(r) = self.recent.get_mut(pop) {
-                *r += 1.0;
-            }
+        if let Some(field) = self.fields.get_mut(pop) {
+            field.add(x, y, if positive { w } else { -w });
             self.samples += 1;
         }
     }
@@ -670,31 +603,14 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             }
             self.phase = (self.phase + 1) % refresh;
             let est = if warm { self.last } else { None };
-            let slow_tau = self
-                .tau_a
-                .max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
-            for (pop, tau) in [(0, self.tau_a), (1, slow_tau)] {
-                let keep = (-self.period / tau).exp();
-                for b in self
-                    .hist
-                    .iter_mut()
-                    .filter_map(|h| h.get_mut(pop))
-                    .flat_map(|h| h.iter_mut())
-                    .flatten()
-                {
-                    *b *= keep;
-                }
+            for field in &mut self.fields {
+                field.age();
             }
             let stale = if next - self.last_event > 100_000.0 {
                 crate::flags::STALE
             } else {
                 0
             };
-            let short_keep = (-self.period / f64::from(crate::readout::field::SHORT_TAU_US)).exp();
-            for (s, r) in self.short.iter_mut().zip(self.recent.iter_mut()) {
-                *s = *s * short_keep + *r;
-                *r = 0.0;
-            }
             match est {
                 Some(v) => out.push((next, v, stale)),
                 None => out.push((next, 0.0, stale | crate::flags::NO_EVIDENCE)),
@@ -704,136 +620,15 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         self.next_out = Some(next);
     }
 
+    /// The estimate of the population that decodes more per unit of its time constant.
     fn estimate(&self) -> Option<f64> {
-        let slow_tau = self
-            .tau_a
-            .max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
-        let rate = |pop: usize, tau: f64| {
-            self.hist
-                .iter()
-                .filter_map(|h| h.get(pop))
-                .map(|h| h.iter().flatten().sum::<f64>())
-                .sum::<f64>()
-                / tau
+        let [fast, slow] = &self.fields;
+        let field = if fast.rate() < slow.rate() {
+            slow
+        } else {
+            fast
         };
-        let pop = usize::from(rate(0, self.tau_a) < rate(1, slow_tau));
-        let tau = if pop == 0 { self.tau_a } else { slow_tau };
-        let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
-        if self.short.get(pop).copied().unwrap_or(0.0) / short_tau * 8.0 < rate(pop, tau) {
-            return None;
-        }
-        self.population_estimate(pop)
-    }
-
-    fn population_estimate(&self, pop: usize) -> Option<f64> {
-        let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
-        for b in 0..COLS {
-            let fits = [
-                self.column_intercept(pop, 0, b),
-                self.column_intercept(pop, 1, b),
-            ];
-            let est = match (fits, self.paired_bands == 0) {
-                ([Some((a, va)), Some((c, vc))], _) => Some((0.5 * (a + c), 0.25 * (va + vc))),
-                ([Some(a), None] | [None, Some(a)], true) => Some(a),
-                _ => None,
-            };
-            values.extend(est.map(|(v, var)| (v, 1.0 / var)));
-        }
-        if self.paired_bands > 0 && values.len() < self.support.min(self.paired_bands).max(1) {
-            return None;
-        }
-        let total: f64 = values.iter().map(|v| v.1).sum();
-        if values.is_empty() || total <= 0.0 {
-            return None;
-        }
-        values.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut acc = 0.0;
-        for &(x, w) in &values {
-            acc += w;
-            if 2.0 * acc >= total {
-                return Some(x.clamp(-20.0, 20.0));
-            }
-        }
-        values.last().map(|v| v.0.clamp(-20.0, 20.0))
-    }
-
-    /// Intercept at `Y = 0` of the weighted least-squares fit `r = w + a Y (above) + b Y
-    /// (below)` over one column band's regions on one side, and its variance; slopes with a
-    /// prior of one standard deviation at 2 rad/s per unit of `Y`.
-    fn column_intercept(&self, pop: usize, side: usize, band: usize) -> Option<(f64, f64)> {
-        let (mut s, mut r_sum) = (0.0, 0.0);
-        let mut half = [(0.0f64, 0.0f64, 0.0f64); 2];
-        let mut points = 0;
-        for v in 0..2 {
-            for row in 0..ROWS {
-                let Some((m, var)) =
-                    self.population_value(((side * COLS + band) * 2 + v) * ROWS + row, pop)
-                else {
-                    continue;
-                };
-                let w = 1.0 / var;
-                let y =
-                    (row as f64 + 0.5) * self.band.1 / self.focal * if v == 0 { -1.0 } else { 1.0 };
-                s += w;
-                r_sum += w * m;
-                if let Some(h) = half.get_mut(v) {
-                    h.0 += w * y;
-                    h.1 += w * y * y;
-                    h.2 += w * m * y;
-                }
-                points += 1;
-            }
-        }
-        if points == 0 {
-            return None;
-        }
-        let (mut info, mut rhs) = (s, r_sum);
-        for &(sy, syy, sry) in &half {
-            if sy != 0.0 {
-                info -= sy * sy / (syy + 0.25);
-                rhs -= sy * sry / (syy + 0.25);
-            }
-        }
-        if info <= 0.0 {
-            return None;
-        }
-        Some((rhs / info, 1.0 / info))
-    }
-
-    /// `(median, variance of the median)` of one population in region `i`.
-    fn population_value(&self, i: usize, pop: usize) -> Option<(f64, f64)> {
-        let [neg, pos] = self.hist.get(i)?.get(pop)?;
-        let total: f64 = neg.iter().chain(pos.iter()).sum();
-        if total <= 0.0 || total < self.min_samples {
-            return None;
-        }
-        let (lo, hi) = (0.01f64.log2(), 20.0f64.log2());
-        let bw = (hi - lo) / ORACLE_BINS as f64;
-        let signed = neg
-            .iter()
-            .enumerate()
-            .rev()
-            .map(|(i, &m)| (i, m, false))
-            .chain(pos.iter().enumerate().map(|(i, &m)| (i, m, true)));
-        let mut q = [
-            (total / 4.0, 0.0f64),
-            (total / 2.0, 0.0),
-            (total * 0.75, 0.0),
-        ];
-        let mut pending = q.iter_mut().peekable();
-        let mut acc = 0.0;
-        for (i, m, positive) in signed {
-            while let Some((target, value)) = pending.next_if(|(t, _)| m > 0.0 && acc + m >= *t) {
-                let frac = (*target - acc) / m;
-                let f = if positive { frac } else { 1.0 - frac };
-                let v = (lo + (i as f64 + f) * bw).exp2();
-                *value = if positive { v } else { -v };
-            }
-            acc += m;
-        }
-        let [(_, q1), (_, median), (_, q3)] = q;
-        let iqr = (q3 - q1).abs().max(self.spread_floor);
-        Some((median, iqr * iqr / total.floor().max(1.0)))
+        field.estimate()
     }
 }
 
@@ -1398,11 +1193,15 @@ impl OracleField {
         self.recent = 0.0;
     }
 
+    /// Decodes per µs over the histograms' time constant.
+    pub fn rate(&self) -> f64 {
+        self.hist.iter().flatten().flatten().sum::<f64>() / self.tau_a
+    }
+
     /// The rotation the field shows, if it shows one.
     pub fn estimate(&self) -> Option<f64> {
-        let rate = self.hist.iter().flatten().flatten().sum::<f64>() / self.tau_a;
         let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
-        if self.short / short_tau * 8.0 < rate {
+        if self.short / short_tau * 8.0 < self.rate() {
             return None;
         }
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();

@@ -266,29 +266,29 @@ impl Settings {
         spike_cells: &'a mut [SpikeCell],
     ) -> Result<Built<'a>, SettingsError> {
         let layout = self.layout()?;
-        let tau_a_us = self.tau_a_us(layout.unit_count());
+        // The rad/s readouts (calibrated, spikes) share the calibration and the onset filter.
+        let cal = Calibration {
+            tau_a_us: self.tau_a_us(layout.unit_count()),
+            period_us: self.period_us,
+            ..Calibration::new(self.focal_px, self.cx, self.cy)
+        };
+        let onsets = InputFilter::Onsets {
+            gap_us: ONSET_GAP_US,
+        };
         Ok(match self.readout {
             ReadoutChoice::Calibrated => {
-                let cal = Calibration {
-                    tau_a_us,
-                    period_us: self.period_us,
-                    ..Calibration::new(self.focal_px, self.cx, self.cy)
-                };
                 let readout = Calibrated::new(kernel, &layout, cal);
-                let filter = InputFilter::Onsets {
-                    gap_us: ONSET_GAP_US,
-                };
                 Built::Calibrated(OnLayout::new(
                     kernel,
                     layout,
                     state,
-                    filter,
+                    onsets,
                     readout,
                     self.period_us,
                 )?)
             }
             ReadoutChoice::Normalized => {
-                let readout = Normalized::new(tau_a_us, self.period_us);
+                let readout = Normalized::new(cal.tau_a_us, self.period_us);
                 Built::Normalized(OnLayout::new(
                     kernel,
                     layout,
@@ -306,20 +306,12 @@ impl Settings {
                         given: spike_cells.len(),
                     });
                 }
-                let cal = Calibration {
-                    tau_a_us,
-                    period_us: self.period_us,
-                    ..Calibration::new(self.focal_px, self.cx, self.cy)
-                };
                 let readout = Spikes::new(kernel, layout.clone(), cal, spike_cells);
-                let filter = InputFilter::Onsets {
-                    gap_us: ONSET_GAP_US,
-                };
                 Built::Spikes(OnLayout::new(
                     kernel,
                     layout,
                     state,
-                    filter,
+                    onsets,
                     readout,
                     self.period_us,
                 )?)

@@ -473,7 +473,7 @@ fn float(
         };
         match (settings.readout, camera.focal) {
             (ReadoutChoice::Spikes, Some(f)) => {
-                let mut y = OracleSpikeYaw::new(
+                let y = OracleSpikeYaw::new(
                     p,
                     layout.clone(),
                     f,
@@ -482,25 +482,10 @@ fn float(
                     f64::from(ONSET_GAP_US),
                     tau_a,
                 );
-                let mut got = Vec::new();
-                let mut last = 0.0f64;
-                pieces.for_each(first, |ev| {
-                    last = rel(ev.t_us);
-                    y.event(last, ev.x, ev.y, ev.on, &mut got);
-                    for &(t, v, flags) in &got {
-                        out.push((t0 as f64 + t) * 1e-6, v, flags);
-                    }
-                    got.clear();
-                    out.flush_if_full()
-                })?;
-                y.finish(last, &mut got);
-                for &(t, v, flags) in &got {
-                    out.push((t0 as f64 + t) * 1e-6, v, flags);
-                }
-                outputs += y.samples;
+                outputs += oracle_piece(y, first, pieces, &mut out)?;
             }
             (ReadoutChoice::Calibrated, Some(f)) => {
-                let mut y = OracleYaw::new(
+                let y = OracleYaw::new(
                     p,
                     layout.clone(),
                     f,
@@ -509,22 +494,7 @@ fn float(
                     f64::from(ONSET_GAP_US),
                     tau_a,
                 );
-                let mut got = Vec::new();
-                let mut last = 0.0f64;
-                pieces.for_each(first, |ev| {
-                    last = rel(ev.t_us);
-                    y.event(last, ev.x, ev.y, ev.on, &mut got);
-                    for &(t, v, flags) in &got {
-                        out.push((t0 as f64 + t) * 1e-6, v, flags);
-                    }
-                    got.clear();
-                    out.flush_if_full()
-                })?;
-                y.finish(last, &mut got);
-                for &(t, v, flags) in &got {
-                    out.push((t0 as f64 + t) * 1e-6, v, flags);
-                }
-                outputs += y.samples;
+                outputs += oracle_piece(y, first, pieces, &mut out)?;
             }
             _ => {
                 // The paper's readout: spikes of the whole piece, sorted, then integrated.
@@ -568,6 +538,62 @@ fn float(
         restart = true;
     }
     finish(samples, normalized, outputs, ignored)
+}
+
+/// The f64 oracle of a rad/s readout: events in, `(t_us, yaw, flags)` samples out.
+trait OracleReadout {
+    fn event(&mut self, t: f64, x: u16, y: u16, on: bool, out: &mut Vec<(f64, f64, u8)>);
+    fn finish(&mut self, t: f64, out: &mut Vec<(f64, f64, u8)>);
+    /// Bursts decoded.
+    fn decoded(&self) -> u64;
+}
+
+macro_rules! oracle_readout {
+    ($t:ident) => {
+        impl<L: Layout> OracleReadout for $t<L> {
+            fn event(&mut self, t: f64, x: u16, y: u16, on: bool, out: &mut Vec<(f64, f64, u8)>) {
+                $t::event(self, t, x, y, on, out);
+            }
+            fn finish(&mut self, t: f64, out: &mut Vec<(f64, f64, u8)>) {
+                $t::finish(self, t, out);
+            }
+            fn decoded(&self) -> u64 {
+                self.samples
+            }
+        }
+    };
+}
+oracle_readout!(OracleYaw);
+oracle_readout!(OracleSpikeYaw);
+
+/// Runs one piece (from `first` to its end) through the oracle readout `y`, its samples back
+/// on the recording's clock; returns the bursts it decoded.
+fn oracle_piece(
+    mut y: impl OracleReadout,
+    first: Event64,
+    pieces: &mut Pieces<'_>,
+    out: &mut PieceOut<'_>,
+) -> Result<u64> {
+    let t0 = first.t_us;
+    // Times within a piece are at most RESTART_BACK_US before its first event.
+    let rel = |t: u64| t as f64 - t0 as f64;
+    let mut got = Vec::new();
+    let mut last = 0.0f64;
+    let flush = |got: &mut Vec<(f64, f64, u8)>, out: &mut PieceOut<'_>| {
+        for &(t, v, flags) in got.iter() {
+            out.push((t0 as f64 + t) * 1e-6, v, flags);
+        }
+        got.clear();
+    };
+    pieces.for_each(first, |ev| {
+        last = rel(ev.t_us);
+        y.event(last, ev.x, ev.y, ev.on, &mut got);
+        flush(&mut got, out);
+        out.flush_if_full()
+    })?;
+    y.finish(last, &mut got);
+    flush(&mut got, out);
+    Ok(y.decoded())
 }
 
 /// The run's output once every piece is done.
