@@ -5,7 +5,7 @@
 //! |---|---|---|
 //! | 0 | [`STALE`] | the pipeline |
 //! | 1 | [`NO_EVIDENCE`] | the readout |
-//! | 2 | [`OVERFLOW`] | the firmware (input or output lost to overload) |
+//! | 2 | [`OVERFLOW`] | the firmware (input or output lost to overload); the pipeline (unit inputs lost to a full unit pool) |
 //! | 3 | [`DECODER_ERRORS`] | the firmware |
 //! | 4 | [`INPUT_ERRORS`] | the firmware |
 //! | 5 | [`CLOCK`] | the firmware (live link) |
@@ -20,7 +20,8 @@ pub const STALE: u8 = 1 << 0;
 /// The evidence did not pass the readout's gate: the value is 0 for lack of evidence.
 pub const NO_EVIDENCE: u8 = 1 << 1;
 /// Input was lost to overload: whole frames dropped because processing fell behind, the
-/// sender reported lost events (SOURCE_OVERFLOW), or yaw frames were dropped on output.
+/// sender reported lost events (SOURCE_OVERFLOW), yaw frames were dropped on output, or the
+/// network's unit pool was full (unit inputs lost, `crate::network::pool`).
 pub const OVERFLOW: u8 = 1 << 2;
 /// Payload decoder errors (EVT 3.0 words of undefined types).
 pub const DECODER_ERRORS: u8 = 1 << 3;

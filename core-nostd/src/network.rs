@@ -23,6 +23,8 @@
 //!   unit with a spike pending) and there only units with a spike due. Each spike costs one
 //!   table lookup; a cell whose units cannot spike again is not visited. A sink that does not
 //!   want spikes skips the units altogether.
+//! - With a unit pool ([`NetState::pooled`]) only the cells whose units are not at rest hold
+//!   unit state (see [`pool`]); while the pool has room the spikes are the same.
 //! - A sink that can hold spikes for future outputs ([`NetSink::ahead_us`], the normalized
 //!   readout) gets them up to that far beyond the clock, a unit in a dense burst being visited
 //!   once per that span instead of once per tick; an event that changes a unit's burst takes
@@ -40,6 +42,11 @@ use crate::layout::{Dir, Layout, UnitMask};
 use crate::params::{Trace, TAU_SLOW_US};
 use crate::time::EventTime;
 use crate::unit::{elapsed_us, fine, reported_by, BurstUnit, FineTime, Kernel, WideTrace};
+
+pub mod pool;
+
+use pool::Pool;
+pub use pool::PoolUse;
 
 /// With the onset filter, a same-polarity event starts a new edge for the slow units only when
 /// their last onset at the pixel is older than this (µs): a slow edge takes this long to pass a
@@ -67,9 +74,10 @@ pub struct Cell {
     t_us: u32,
     /// FAC trace ([`Trace`] bits) and, in the top bit, the last polarity.
     i_fac: u32,
-    /// FAC trace of the slow units (time constant [`TAU_SLOW_US`], [`Trace`] bits); kept only
-    /// for sinks that ask for it ([`NetSink::SLOW`]), else 0.
-    i_slow: u32,
+    /// Without a unit pool: the FAC trace of the slow units (time constant [`TAU_SLOW_US`],
+    /// [`Trace`] bits), kept only for sinks that ask for it ([`NetSink::SLOW`]), else 0.
+    /// With a unit pool: the pool slot of the cell's units plus 1 (0: none).
+    aux: u32,
 }
 
 /// The two units a pixel triggers (left-to-right, right-to-left). 48 bytes.
@@ -117,18 +125,31 @@ impl Cell {
     pub const DEFAULT: Self = Self {
         t_us: 0,
         i_fac: 0,
-        i_slow: 0,
+        aux: 0,
     };
 
-    /// Whether a FAC trace still changes with time.
+    /// Whether a FAC trace still changes with time (`pooled`: the network has a unit pool, so
+    /// `aux` is a slot, not a trace).
     #[inline]
-    fn is_live(&self) -> bool {
-        (self.i_fac & !POLARITY) != 0 || self.i_slow != 0
+    fn is_live(&self, pooled: bool) -> bool {
+        (self.i_fac & !POLARITY) != 0 || (!pooled && self.aux != 0)
+    }
+
+    /// The slow FAC trace (networks without a unit pool).
+    #[inline]
+    fn slow(&self) -> Trace {
+        Trace::from_bits(self.aux)
+    }
+
+    /// The pool slot of the cell's units (networks with a unit pool).
+    #[inline]
+    fn slot(&self) -> Option<usize> {
+        (self.aux as usize).checked_sub(1)
     }
 
     #[inline]
-    fn slow(&self) -> Trace {
-        Trace::from_bits(self.i_slow)
+    fn set_slot(&mut self, slot: Option<usize>) {
+        self.aux = slot.map_or(0, |s| s as u32 + 1);
     }
 
     /// The FAC trace's bits: a [`Trace`], or a [`WideTrace`] when the units run.
@@ -244,10 +265,14 @@ pub struct NetStats {
     pub filtered: u64,
     /// Events whose time lay before their cell's time (processed at the cell's time).
     pub out_of_order: u64,
-    /// Spikes of left-to-right units (emitted and not taken back; see [`NetSink::ahead_us`]).
+    /// Spikes of left-to-right units emitted and not taken back. Spikes emitted ahead of the
+    /// clock ([`NetSink::ahead_us`]) count from their emission; [`Network::flush`] takes back
+    /// those beyond its time, so after it the counts are those of emission at the clock.
     pub spikes_lr: u64,
-    /// Spikes of right-to-left units (emitted and not taken back).
+    /// Spikes of right-to-left units (as `spikes_lr`).
     pub spikes_rl: u64,
+    /// Events whose units found the unit pool full (their drive was lost; see [`pool`]).
+    pub pool_full: u64,
 }
 
 /// Why a network could not be built.
@@ -267,7 +292,14 @@ pub enum NetError {
         /// Unit pairs provided.
         given: usize,
     },
-    /// The active bitset is shorter than [`active_words`] of the cell count.
+    /// The unit pool has fewer owner words than unit pairs.
+    TooFewOwners {
+        /// Owner words needed (one per pair).
+        needed: usize,
+        /// Owner words provided.
+        given: usize,
+    },
+    /// The active bitset is shorter than [`active_words`] of the unit pair count.
     TooFewActiveWords {
         /// Words needed.
         needed: usize,
@@ -288,6 +320,9 @@ impl core::fmt::Display for NetError {
                     "layout needs {needed} unit pairs (or none), {given} given"
                 )
             }
+            Self::TooFewOwners { needed, given } => {
+                write!(f, "unit pool needs {needed} owner words, {given} given")
+            }
             Self::TooFewActiveWords { needed, given } => {
                 write!(f, "active bitset needs {needed} words, {given} given")
             }
@@ -305,9 +340,11 @@ pub struct Network<'a, L: Layout> {
     kernel: &'a Kernel,
     layout: L,
     cells: &'a mut [Cell],
-    /// Empty when no sink wants spikes; else one pair per cell.
+    /// Empty when no sink wants spikes; else one pair per cell, or the pool's slots.
     units: &'a mut [UnitPair],
-    /// Cells with a unit that has a spike pending (one bit per cell).
+    /// The unit pool's bookkeeping (`units` are its slots), if the network has one.
+    pool: Option<Pool<'a>>,
+    /// Unit pairs (cells, or pool slots) with a spike pending (one bit each).
     active: &'a mut [u32],
     filter: InputFilter,
     /// FAC trace level below which the last onset is older than the filter's gap (bits of the
@@ -319,111 +356,13 @@ pub struct Network<'a, L: Layout> {
     /// Next cell of the round-robin clock refresh.
     refresh: usize,
     stats: NetStats,
-    /// Spikes emitted ahead of the clock, counted when the clock reaches them.
-    ahead: Ahead,
-}
-
-/// Output periods of spikes emitted ahead of the clock that [`Ahead`] tracks (beyond, they
-/// count at the last).
-const AHEAD_TICKS: usize = 32;
-
-/// Spikes emitted ahead of the clock ([`NetSink::ahead_us`]), by the tick that will reach them,
-/// so that [`NetStats`] counts only spikes up to the clock (as without emission ahead).
-#[derive(Clone, Debug, Default)]
-struct Ahead {
-    /// Left-to-right and right-to-left spikes for the tick `k` after the last (ring index
-    /// `head + k`).
-    ring: [[u32; 2]; AHEAD_TICKS],
-    head: usize,
-    /// The last tick (µs), once there was one.
-    clock: Option<u32>,
-    /// The interval between the last two ticks (µs, 0 before) and `2^32 / period + 1`.
-    period: u32,
-    inv_period: u64,
-}
-
-impl Ahead {
-    /// The ring slot of a spike at `t_us` after the clock.
-    #[inline]
-    fn slot(&self, t_us: u32) -> usize {
-        let Some(clock) = self.clock else {
-            return (self.head + 1) % AHEAD_TICKS;
-        };
-        let d = t_us.wrapping_sub(clock).max(1);
-        let k = if self.period == 0 {
-            1
-        } else {
-            let p = u64::from(self.period);
-            let x = u64::from(d - 1);
-            let mut k = (x * self.inv_period) >> 32;
-            if k * p > x {
-                k -= 1;
-            }
-            k as usize + 1
-        };
-        (self.head + k.min(AHEAD_TICKS - 1)) % AHEAD_TICKS
-    }
-
-    /// Counts a spike emitted at a tick: now when it is not beyond the clock, else later.
-    #[inline]
-    fn emitted(&mut self, stats: &mut NetStats, dir: Dir, t_us: u32) {
-        if self
-            .clock
-            .is_none_or(|c| (t_us.wrapping_sub(c) as i32) <= 0)
-        {
-            count(stats, dir, 1);
-        } else {
-            let i = self.slot(t_us);
-            if let Some(n) = self.ring.get_mut(i).and_then(|r| r.get_mut(dir.slot())) {
-                *n += 1;
-            }
-        }
-    }
-
-    /// Uncounts a spike taken back (it was emitted ahead).
-    #[inline]
-    fn retracted(&mut self, stats: &mut NetStats, dir: Dir, t_us: u32) {
-        let i = self.slot(t_us);
-        match self.ring.get_mut(i).and_then(|r| r.get_mut(dir.slot())) {
-            Some(n) if *n > 0 => *n -= 1,
-            _ => uncount(stats, dir),
-        }
-    }
-
-    /// The clock moves to the tick at `t_us`: the spikes it reaches count.
-    #[inline]
-    fn tick(&mut self, stats: &mut NetStats, t_us: u32) {
-        if let Some(c) = self.clock {
-            let p = t_us.wrapping_sub(c);
-            if p != self.period && p != 0 && p < 1 << 31 {
-                self.period = p;
-                self.inv_period = (1u64 << 32) / u64::from(p) + 1;
-            }
-            self.head = (self.head + 1) % AHEAD_TICKS;
-            if let Some(r) = self.ring.get_mut(self.head) {
-                let [lr, rl] = core::mem::take(r);
-                stats.spikes_lr += u64::from(lr);
-                stats.spikes_rl += u64::from(rl);
-            }
-        }
-        self.clock = Some(t_us);
-    }
-
-    /// Everything emitted counts (end of a recording, after spikes beyond it were taken back).
-    fn settle(&mut self, stats: &mut NetStats) {
-        for r in &mut self.ring {
-            let [lr, rl] = core::mem::take(r);
-            stats.spikes_lr += u64::from(lr);
-            stats.spikes_rl += u64::from(rl);
-        }
-    }
 }
 
 #[inline]
-fn count(stats: &mut NetStats, dir: Dir, n: u32) {
+fn count(stats: &mut NetStats, dir: Dir) {
     match dir {
-        Dir::LeftToRight => stats.spikes_lr += u64::from(n),
-        Dir::RightToLeft => stats.spikes_rl += u64::from(n),
+        Dir::LeftToRight => stats.spikes_lr += 1,
+        Dir::RightToLeft => stats.spikes_rl += 1,
     }
 }
 
@@ -436,11 +375,14 @@ fn uncount(stats: &mut NetStats, dir: Dir) {
 }
 
 /// The state a network runs in, borrowed from the caller (no heap): one [`Cell`] per cell of
-/// the layout and, when the units run (sinks that want spikes), one [`UnitPair`] per cell and
-/// [`active_words`] of the cell count. Longer slices are fine (their front is used).
+/// the layout and, when the units run (sinks that want spikes), one [`UnitPair`] per cell (or
+/// per slot of a unit pool, with one owner word each) and [`active_words`] of the pair count.
+/// Longer slices are fine (their front is used).
 pub struct NetState<'a> {
     cells: &'a mut [Cell],
     units: &'a mut [UnitPair],
+    /// `Some`: the units are a pool with these owner words.
+    owners: Option<&'a mut [u32]>,
     active: &'a mut [u32],
 }
 
@@ -451,6 +393,7 @@ impl<'a> NetState<'a> {
         Self {
             cells,
             units: &mut [],
+            owners: None,
             active: &mut [],
         }
     }
@@ -464,6 +407,30 @@ impl<'a> NetState<'a> {
         Self {
             cells,
             units,
+            owners: None,
+            active,
+        }
+    }
+
+    /// The same cells, without units (for sinks that want no spikes: the FAC traces then
+    /// take their narrow format, and slow traces are kept).
+    pub fn without_units(self) -> Self {
+        Self::cells(self.cells)
+    }
+
+    /// Cells, a unit pool of `units.len()` pairs with as many `owners` words, and the active
+    /// bitset ([`active_words`] of the pool size): the spiking network with unit state only
+    /// for cells whose units are not at rest (see [`pool`]).
+    pub fn pooled(
+        cells: &'a mut [Cell],
+        units: &'a mut [UnitPair],
+        owners: &'a mut [u32],
+        active: &'a mut [u32],
+    ) -> Self {
+        Self {
+            cells,
+            units,
+            owners: Some(owners),
             active,
         }
     }
@@ -491,6 +458,7 @@ impl<'a, L: Layout> Network<'a, L> {
         let NetState {
             cells,
             units,
+            owners,
             active,
         } = state;
         let needed = layout.cell_count();
@@ -499,24 +467,30 @@ impl<'a, L: Layout> Network<'a, L> {
             return Err(NetError::TooFewCells { needed, given });
         };
         let given_units = units.len();
-        let units = if given_units == 0 {
-            units
-        } else {
-            match units.get_mut(..needed) {
-                Some(u) => u,
+        let (units, pool) = match owners {
+            // A pool: as many slots as pairs given.
+            Some(owners) => {
+                let given = owners.len();
+                let Some(owners) = owners.get_mut(..given_units) else {
+                    return Err(NetError::TooFewOwners {
+                        needed: given_units,
+                        given,
+                    });
+                };
+                (units, Some(Pool::new(owners)))
+            }
+            None if given_units == 0 => (units, None),
+            None => match units.get_mut(..needed) {
+                Some(u) => (u, None),
                 None => {
                     return Err(NetError::TooFewUnits {
                         needed,
                         given: given_units,
                     })
                 }
-            }
+            },
         };
-        let words = if units.is_empty() {
-            0
-        } else {
-            active_words(needed)
-        };
+        let words = active_words(units.len());
         let given_words = active.len();
         let Some(active) = active.get_mut(..words) else {
             return Err(NetError::TooFewActiveWords {
@@ -544,13 +518,13 @@ impl<'a, L: Layout> Network<'a, L> {
             layout,
             cells,
             units,
+            pool,
             active,
             filter,
             onset_level,
             slow_onset_level,
             refresh: 0,
             stats: NetStats::default(),
-            ahead: Ahead::default(),
         })
     }
 
@@ -569,20 +543,51 @@ impl<'a, L: Layout> Network<'a, L> {
         &self.stats
     }
 
-    /// The units of cell `c` (when the units run).
+    /// The units of cell `c` (when the units run; with a unit pool, while they hold a slot).
     pub fn units(&self, c: usize) -> Option<&UnitPair> {
-        self.units.get(c)
+        self.units.get(self.slot(c)?)
     }
 
-    /// Cells with a spike pending (marked in the active bitset).
+    /// Unit pairs with a spike pending (marked in the active bitset).
     pub fn pending_cells(&self) -> usize {
         self.active.iter().map(|w| w.count_ones() as usize).sum()
+    }
+
+    /// How full the unit pool is (`None`: the network has no pool).
+    pub fn pool_use(&self) -> Option<PoolUse> {
+        self.pool.as_ref().map(Pool::usage)
     }
 
     /// Bytes of state per pixel: a [`Cell`], and a [`UnitPair`] when the units run.
     pub const CELL_BYTES: usize = core::mem::size_of::<Cell>();
     /// Bytes of one [`UnitPair`] (two units).
     pub const UNIT_PAIR_BYTES: usize = core::mem::size_of::<UnitPair>();
+    /// Bytes of one slot of a unit pool: a [`UnitPair`] and its owner word.
+    pub const POOL_SLOT_BYTES: usize = core::mem::size_of::<UnitPair>() + 4;
+
+    /// Where cell `c`'s units are in `units`: the cell itself, or its pool slot.
+    #[inline]
+    fn slot(&self, c: usize) -> Option<usize> {
+        match self.pool {
+            None => Some(c),
+            Some(_) => self.cells.get(c)?.slot(),
+        }
+    }
+
+    /// The cell whose units are in slot `s` of `units`.
+    #[inline]
+    fn cell_of(&self, s: usize) -> Option<usize> {
+        match &self.pool {
+            None => Some(s),
+            Some(p) => p.owner(s),
+        }
+    }
+
+    /// Whether cells keep slow FAC traces: for sinks that want them, without a unit pool.
+    #[inline]
+    fn keeps_slow<S: NetSink>(&self) -> bool {
+        S::SLOW && self.pool.is_none()
+    }
 
     /// FAC trace (bits) of cell `c` at time `t` (0 for a missing cell).
     #[inline]
@@ -670,11 +675,12 @@ impl<'a, L: Layout> Network<'a, L> {
     fn own_traces<S: NetSink>(&self, c: usize, t: u32) -> Option<OwnTraces> {
         let cell = self.cells.get(c)?;
         let since = EventTime::from_us(t).since(EventTime::from_us(cell.t_us));
+        let pooled = self.pool.is_some();
         let late = since.is_none()
-            && (cell.is_live()
-                || (self.spiking::<S>() && self.units.get(c).is_some_and(UnitPair::is_live)));
+            && (cell.is_live(pooled)
+                || (self.spiking::<S>() && self.units(c).is_some_and(UnitPair::is_live)));
         let since = since.unwrap_or(0);
-        let slow = if S::SLOW {
+        let slow = if self.keeps_slow::<S>() {
             decay_slow(cell.slow(), since)
         } else {
             Trace::ZERO
@@ -729,7 +735,7 @@ impl<'a, L: Layout> Network<'a, L> {
             if let Some(f) = fac.get_mut(slot) {
                 *f = self.fac_at(nb, ev.t_us);
             }
-            if S::SLOW {
+            if self.keeps_slow::<S>() {
                 if let Some(f) = slow.get_mut(slot) {
                     *f = self.slow_at(nb, ev.t_us);
                 }
@@ -755,6 +761,7 @@ impl<'a, L: Layout> Network<'a, L> {
     ) {
         let kernel = self.kernel;
         let wide = self.wide();
+        let keeps_slow = self.keeps_slow::<S>();
         let [lr, rl] = fac.map(|f| self.fac_trace(f));
         let Some(cell) = self.cells.get_mut(c) else {
             return;
@@ -773,13 +780,13 @@ impl<'a, L: Layout> Network<'a, L> {
         } else {
             Trace::from_bits(own_bits)
         };
-        let own_slow = if S::SLOW {
+        let own_slow = if keeps_slow {
             if slow_onset {
                 let i = kernel.fac_input(own.slow);
-                cell.i_slow = i.to_bits();
+                cell.aux = i.to_bits();
                 i
             } else {
-                cell.i_slow = own.slow.to_bits();
+                cell.aux = own.slow.to_bits();
                 // Not a new edge for the slow units: no slow drive, nothing to decode.
                 slow = [Trace::ZERO; 2];
                 Trace::ZERO
@@ -806,18 +813,18 @@ impl<'a, L: Layout> Network<'a, L> {
     #[inline]
     fn units_to_event<S: NetSink>(&mut self, c: usize, own: &OwnTraces, t: u32, sink: &mut S) {
         let kernel = self.kernel;
-        let Some(pair) = self.units.get_mut(c) else {
-            return;
-        };
         let t_in = if own.late {
             // Processed at the cell's time.
             self.cells.get(c).map_or(t, |cell| cell.t_us)
         } else {
             t
         };
+        let Some(pair) = self.slot(c).and_then(|s| self.units.get_mut(s)) else {
+            return;
+        };
         let stats = &mut self.stats;
-        emit_pair(kernel, pair, c, t_in, fine(t_in), sink, |dir, _| {
-            count(stats, dir, 1)
+        emit_pair(kernel, pair, c, t_in, fine(t_in), sink, |dir| {
+            count(stats, dir)
         });
     }
 
@@ -840,7 +847,11 @@ impl<'a, L: Layout> Network<'a, L> {
         } else {
             t
         };
-        let Some(pair) = self.units.get_mut(c) else {
+        let Some(s) = self.slot_for_input(c, mask, fac) else {
+            return;
+        };
+        let pooled = self.pool.is_some();
+        let Some(pair) = self.units.get_mut(s) else {
             return;
         };
         let cell = c as u32;
@@ -848,22 +859,72 @@ impl<'a, L: Layout> Network<'a, L> {
             if mask & (1 << dir.slot()) == 0 {
                 continue;
             }
-            let (stats, ahead) = (&mut self.stats, &mut self.ahead);
+            let stats = &mut self.stats;
             kernel.burst_retract(u, fine(t_in), |t_us| {
-                ahead.retracted(stats, dir, t_us);
+                uncount(stats, dir);
                 sink.retract(Spike { t_us, cell, dir })
             });
+            if pooled && kernel.burst_at_rest(u, t_in) {
+                // At rest in a pooled network: as if its slot had been freed (see `pool`).
+                *u = BurstUnit::IDLE;
+            }
             kernel.burst_input(u, t_in, WideTrace(f));
         }
         if pair.pending() {
-            self.mark_active(c);
+            self.mark_active(s);
+        } else if self.pool.is_some() && pair.units.iter().all(|u| kernel.burst_at_rest(u, t_in)) {
+            // An input too weak to leave anything behind.
+            self.release(c, s);
+        }
+    }
+
+    /// The slot an input to cell `c`'s units in `mask` (with FAC traces `fac`) goes to: the
+    /// cell itself, its pool slot, or a free one it takes now. `None` when it has none and
+    /// the input would not drive its units anyway, or when the pool is full (counted).
+    #[inline]
+    fn slot_for_input(&mut self, c: usize, mask: UnitMask, fac: [u32; 2]) -> Option<usize> {
+        let Some(pool) = &mut self.pool else {
+            return Some(c);
+        };
+        let cell = self.cells.get_mut(c)?;
+        if let Some(s) = cell.slot() {
+            return Some(s);
+        }
+        let drives = fac
+            .iter()
+            .zip(Dir::BOTH)
+            .any(|(&f, dir)| f != 0 && mask & (1 << dir.slot()) != 0);
+        if !drives {
+            return None;
+        }
+        let Some(s) = pool.take(c) else {
+            self.stats.pool_full += 1;
+            return None;
+        };
+        cell.set_slot(Some(s));
+        if let Some(pair) = self.units.get_mut(s) {
+            *pair = UnitPair::DEFAULT;
+        }
+        Some(s)
+    }
+
+    /// Cell `c` gives its pool slot `s` back (its units are at rest).
+    fn release(&mut self, c: usize, s: usize) {
+        if let Some(cell) = self.cells.get_mut(c) {
+            cell.set_slot(None);
+        }
+        if let Some(pool) = &mut self.pool {
+            pool.give_back(s);
+        }
+        if let Some(w) = self.active.get_mut(s / 32) {
+            *w &= !(1 << (s % 32));
         }
     }
 
     #[inline]
-    fn mark_active(&mut self, c: usize) {
-        if let Some(w) = self.active.get_mut(c / 32) {
-            *w |= 1 << (c % 32);
+    fn mark_active(&mut self, s: usize) {
+        if let Some(w) = self.active.get_mut(s / 32) {
+            *w |= 1 << (s % 32);
         }
     }
 
@@ -871,11 +932,13 @@ impl<'a, L: Layout> Network<'a, L> {
     /// ahead of `t`.
     fn advance_cell(&mut self, c: usize, t: u32) {
         let kernel = self.kernel;
+        let pooled = self.pool.is_some();
+        let slot = self.slot(c);
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };
-        let pair = self.units.get_mut(c);
-        if !cell.is_live() && !pair.as_deref().is_some_and(UnitPair::is_live) {
+        let pair = slot.and_then(|s| self.units.get_mut(s));
+        if !cell.is_live(pooled) && !pair.as_deref().is_some_and(UnitPair::is_live) {
             cell.t_us = t;
             return;
         }
@@ -886,11 +949,44 @@ impl<'a, L: Layout> Network<'a, L> {
             return;
         }
         cell.set_fac(kernel.decay_fac(Trace::from_bits(cell.fac()), dt).to_bits());
-        cell.i_slow = decay_slow(cell.slow(), dt).to_bits();
+        if !pooled {
+            cell.aux = decay_slow(cell.slow(), dt).to_bits();
+        }
         cell.t_us = t;
-        if let Some(pair) = pair {
+        let Some(pair) = pair else {
+            return;
+        };
+        if !pooled {
             for u in &mut pair.units {
                 kernel.burst_settle(u, t);
+            }
+        } else if let (true, Some(s)) =
+            (pair.units.iter().all(|u| kernel.burst_at_rest(u, t)), slot)
+        {
+            self.release(c, s);
+        }
+    }
+
+    /// The pool's sweep for this period: slots whose units are all at rest at `t` are freed.
+    fn sweep_pool(&mut self, t: u32) {
+        let Some(pool) = &mut self.pool else {
+            return;
+        };
+        let (start, count) = pool.sweep_range();
+        let cap = pool.capacity();
+        for i in 0..count {
+            let s = (start + i) % cap;
+            let (Some(c), Some(pair)) = (pool.owner(s), self.units.get(s)) else {
+                continue;
+            };
+            if pair.units.iter().all(|u| self.kernel.burst_at_rest(u, t)) {
+                if let Some(cell) = self.cells.get_mut(c) {
+                    cell.set_slot(None);
+                }
+                pool.give_back(s);
+                if let Some(w) = self.active.get_mut(s / 32) {
+                    *w &= !(1 << (s % 32));
+                }
             }
         }
     }
@@ -902,7 +998,6 @@ impl<'a, L: Layout> Network<'a, L> {
     /// of the present.
     pub fn tick<S: NetSink>(&mut self, t: u32, sink: &mut S) {
         if self.spiking::<S>() {
-            self.ahead.tick(&mut self.stats, t);
             let ahead = sink.ahead_us();
             let horizon = t.wrapping_add(ahead);
             // A unit is visited when its next spike comes due, and then emits a whole horizon's
@@ -929,19 +1024,22 @@ impl<'a, L: Layout> Network<'a, L> {
                 while due_bits != 0 {
                     let b = due_bits.trailing_zeros() as usize;
                     due_bits &= due_bits - 1;
-                    let c = base + b;
-                    let Some(pair) = self.units.get_mut(c) else {
+                    let s = base + b;
+                    let c = match &self.pool {
+                        None => s,
+                        Some(p) => p.owner(s).unwrap_or(s),
+                    };
+                    let Some(pair) = self.units.get_mut(s) else {
                         continue;
                     };
-                    let (stats, ahead) = (&mut self.stats, &mut self.ahead);
-                    emit_pair(kernel, pair, c, due, until, sink, |dir, t_us| {
-                        ahead.emitted(stats, dir, t_us)
-                    });
+                    let stats = &mut self.stats;
+                    emit_pair(kernel, pair, c, due, until, sink, |dir| count(stats, dir));
                     if !pair.pending() {
                         *word &= !(1 << b);
                     }
                 }
             }
+            self.sweep_pool(t);
         }
         if !self.cells.is_empty() {
             let c = self.refresh % self.cells.len();
@@ -956,25 +1054,28 @@ impl<'a, L: Layout> Network<'a, L> {
         if self.spiking::<S>() {
             let until = reported_by(t);
             let kernel = self.kernel;
-            for (c, pair) in self.units.iter_mut().enumerate() {
-                let (stats, ahead) = (&mut self.stats, &mut self.ahead);
-                emit_pair(kernel, pair, c, t, until, sink, |dir, _| {
-                    count(stats, dir, 1)
-                });
+            for s in 0..self.units.len() {
+                let Some(c) = self.cell_of(s) else {
+                    continue;
+                };
+                let Some(pair) = self.units.get_mut(s) else {
+                    continue;
+                };
+                let stats = &mut self.stats;
+                emit_pair(kernel, pair, c, t, until, sink, |dir| count(stats, dir));
                 let cell = c as u32;
                 for (u, dir) in pair.units.iter_mut().zip(Dir::BOTH) {
                     kernel.burst_retract(u, until, |t_us| {
-                        ahead.retracted(stats, dir, t_us);
+                        uncount(stats, dir);
                         sink.retract(Spike { t_us, cell, dir })
                     });
                 }
                 if pair.pending() {
-                    if let Some(w) = self.active.get_mut(c / 32) {
-                        *w |= 1 << (c % 32);
+                    if let Some(w) = self.active.get_mut(s / 32) {
+                        *w |= 1 << (s % 32);
                     }
                 }
             }
-            self.ahead.settle(&mut self.stats);
         }
         for c in 0..self.cells.len() {
             self.advance_cell(c, t);
@@ -990,7 +1091,7 @@ impl<'a, L: Layout> Network<'a, L> {
 /// Emits the spikes of both units of cell `c` whose exact time is at or before `until`, for
 /// units whose next spike is reported at or before `due`; `tally` counts each.
 #[inline]
-fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
+fn emit_pair<S: NetSink, T: FnMut(Dir)>(
     kernel: &Kernel,
     pair: &mut UnitPair,
     c: usize,
@@ -1004,7 +1105,7 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
     for (u, dir) in [(lr, Dir::LeftToRight), (rl, Dir::RightToLeft)] {
         if u.due(due) {
             kernel.burst_emit(u, until, |t_us| {
-                tally(dir, t_us);
+                tally(dir);
                 sink.spike(Spike { t_us, cell, dir })
             });
         }

@@ -6,7 +6,9 @@
 //! A sample at `T` is produced before any event later than `T` is processed, after the network
 //! has been moved to `T` ([`Network::tick`]), so it depends only on events up to `T`. When no
 //! events arrive, [`Pipeline::poll`] moves the clock from outside (the firmware's timer); after
-//! [`STALE_AFTER_US`] without an event the samples carry [`flags::STALE`].
+//! [`STALE_AFTER_US`] without an event the samples carry [`flags::STALE`]; a sample after
+//! unit inputs were lost to a full unit pool ([`crate::network::pool`]) carries
+//! [`flags::OVERFLOW`].
 
 use crate::event::Event;
 use crate::flags;
@@ -26,6 +28,8 @@ pub struct Pipeline<'a, L: Layout, R: Readout> {
     /// Next output time, once the first event has set the grid.
     next_out: Option<EventTime>,
     last_event: EventTime,
+    /// The network's [`crate::network::NetStats::pool_full`] at the last sample.
+    pool_full_seen: u64,
     /// Samples produced.
     pub samples: u64,
 }
@@ -39,6 +43,7 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
             period_us: period_us.max(1),
             next_out: None,
             last_event: EventTime::from_us(0),
+            pool_full_seen: 0,
             samples: 0,
         }
     }
@@ -69,6 +74,14 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         self.emit_until(EventTime::from_us(now_us), true, out);
     }
 
+    /// Ends the run at `now_us` (the last event's time): emits every sample due up to it, then
+    /// settles the network there ([`Network::flush`]: its spike counts become exactly those
+    /// up to `now_us`, none ahead of it).
+    pub fn finish<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
+        self.poll(now_us, out);
+        self.net.flush(now_us, &mut self.readout);
+    }
+
     /// Emits samples at grid times `T < t` (or `T <= t` when `inclusive`).
     fn emit_until<F: FnMut(YawSample)>(&mut self, t: EventTime, inclusive: bool, out: &mut F) {
         let Some(mut next) = self.next_out else {
@@ -79,6 +92,12 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
             let (yaw_rate, mut f) = self.readout.output(next.as_us());
             if next.elapsed_since(self.last_event) > STALE_AFTER_US {
                 f |= flags::STALE;
+            }
+            let pool_full = self.net.stats().pool_full;
+            if pool_full != self.pool_full_seen {
+                // Unit inputs were lost to a full unit pool since the last sample.
+                f |= flags::OVERFLOW;
+                self.pool_full_seen = pool_full;
             }
             out(YawSample {
                 t_us: next.as_us(),

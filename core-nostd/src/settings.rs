@@ -16,7 +16,7 @@ use fixed::types::U16F16;
 
 use crate::event::Event;
 use crate::layout::{Dense, Layout, PaperBoxes, UnitMask};
-use crate::network::{active_words, InputFilter, NetError, NetState, NetStats, Network};
+use crate::network::{active_words, InputFilter, NetError, NetState, NetStats, Network, PoolUse};
 use crate::pipeline::{Pipeline, ONSET_GAP_US};
 use crate::readout::calibrated::{default_tau_a_us, Calibrated, Calibration};
 use crate::readout::normalized::Normalized;
@@ -32,6 +32,9 @@ pub const NORMALIZED_TAU_A_US: u32 = 10_000;
 
 /// Longest readout time constant a run may ask for (µs).
 pub const MAX_TAU_A_US: u32 = 1_000_000;
+
+/// Largest unit pool a run may ask for (unit pairs).
+pub const MAX_UNIT_POOL: u32 = 1 << 24;
 
 /// Which network runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -90,6 +93,10 @@ pub struct Settings {
     /// Readout time constant `tau_A` (µs, 1..=[`MAX_TAU_A_US`]); `None` = the readout's
     /// default ([`Settings::tau_a_us`]).
     pub tau_a_us: Option<u32>,
+    /// Spiking readouts: `Some(n)`: unit state in a pool of `n` unit pairs
+    /// (1..=[`MAX_UNIT_POOL`]; see [`crate::network::pool`]); `None`: one pair per cell. The
+    /// calibrated readout runs no units and ignores it.
+    pub unit_pool: Option<u32>,
 }
 
 /// Why settings cannot run.
@@ -103,6 +110,8 @@ pub enum SettingsError {
     Period,
     /// `tau_A` is 0 or above [`MAX_TAU_A_US`].
     TauA,
+    /// The unit pool is 0 or above [`MAX_UNIT_POOL`].
+    UnitPool,
     /// The layout (with its stride) does not fit the sensor.
     Layout,
     /// The storage given is smaller than the layout needs.
@@ -123,6 +132,7 @@ impl core::fmt::Display for SettingsError {
             Self::Focal => write!(f, "the focal length must be above 0"),
             Self::Period => write!(f, "the output period must be at least 1 µs"),
             Self::TauA => write!(f, "tau_A must be 1 µs to {MAX_TAU_A_US} µs"),
+            Self::UnitPool => write!(f, "the unit pool must hold 1 to {MAX_UNIT_POOL} pairs"),
             Self::Layout => write!(f, "the layout (with its stride) does not fit the sensor"),
             Self::Storage(e) => write!(f, "{e}"),
             Self::SpikeCells { needed, given } => {
@@ -157,6 +167,7 @@ impl Settings {
             period_us: 1_000,
             readout: ReadoutChoice::Calibrated,
             tau_a_us: None,
+            unit_pool: None,
         }
     }
 
@@ -177,6 +188,9 @@ impl Settings {
         }
         if self.tau_a_us.is_some_and(|t| t == 0 || t > MAX_TAU_A_US) {
             return Err(SettingsError::TauA);
+        }
+        if self.unit_pool.is_some_and(|n| n == 0 || n > MAX_UNIT_POOL) {
+            return Err(SettingsError::UnitPool);
         }
         let (w, h, s) = (self.width, self.height, self.stride);
         let layout = match self.layout {
@@ -220,23 +234,28 @@ impl Settings {
     pub fn storage(&self) -> Result<StorageNeeds, SettingsError> {
         let layout = self.layout()?;
         let cells = layout.cell_count();
+        let unit_pairs = self.unit_pool.map_or(cells, |n| n as usize);
+        let pool_owners = self.unit_pool.map_or(0, |n| n as usize);
         Ok(match self.readout {
             ReadoutChoice::Calibrated => StorageNeeds {
                 cells,
                 unit_pairs: 0,
+                pool_owners: 0,
                 active_words: 0,
                 spike_cells: 0,
             },
             ReadoutChoice::Normalized => StorageNeeds {
                 cells,
-                unit_pairs: cells,
-                active_words: active_words(cells),
+                unit_pairs,
+                pool_owners,
+                active_words: active_words(unit_pairs),
                 spike_cells: 0,
             },
             ReadoutChoice::Spikes => StorageNeeds {
                 cells,
-                unit_pairs: cells,
-                active_words: active_words(cells),
+                unit_pairs,
+                pool_owners,
+                active_words: active_words(unit_pairs),
                 spike_cells: Spikes::cells_for(&layout),
             },
         })
@@ -275,6 +294,7 @@ impl Settings {
         let onsets = InputFilter::Onsets {
             gap_us: ONSET_GAP_US,
         };
+        let state = self.state_for_readout(state);
         Ok(match self.readout {
             ReadoutChoice::Calibrated => {
                 let readout = Calibrated::new(kernel, &layout, cal);
@@ -320,14 +340,28 @@ impl Settings {
     }
 }
 
+impl Settings {
+    /// `state` as the readout runs it: the calibrated readout runs no units (whatever unit
+    /// memory `state` has stays unused).
+    fn state_for_readout<'a>(&self, state: NetState<'a>) -> NetState<'a> {
+        match self.readout {
+            ReadoutChoice::Calibrated => state.without_units(),
+            ReadoutChoice::Normalized | ReadoutChoice::Spikes => state,
+        }
+    }
+}
+
 /// What a run needs of the caller's memory (counts of [`crate::network::Cell`],
 /// [`crate::network::UnitPair`] and `u32` words).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StorageNeeds {
     /// Cells (12 bytes each).
     pub cells: usize,
-    /// Unit pairs ([`crate::network::Network::UNIT_PAIR_BYTES`] each); 0 when the units do not run.
+    /// Unit pairs ([`crate::network::Network::UNIT_PAIR_BYTES`] each): one per cell, or the
+    /// pool's; 0 when the units do not run.
     pub unit_pairs: usize,
+    /// Owner words (`u32`) of the unit pool ([`NetState::pooled`]); 0 without a pool.
+    pub pool_owners: usize,
     /// Words of the active bitset; 0 when the units do not run.
     pub active_words: usize,
     /// The spike readout's per-pixel state ([`SpikeCell`]s, 24 bytes each); 0 for the other
@@ -463,9 +497,19 @@ impl<'a, R: Readout> OnLayout<'a, R> {
         each_layout_pipeline!(self, p => p.poll(now_us, out));
     }
 
+    /// Ends the run at `now_us` (see [`Pipeline::finish`]).
+    pub fn finish<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
+        each_layout_pipeline!(self, p => p.finish(now_us, out));
+    }
+
     /// The network's counters.
     pub fn net_stats(&self) -> &NetStats {
         each_layout_pipeline!(self, p => p.network().stats())
+    }
+
+    /// How full the unit pool is (`None`: no pool).
+    pub fn pool_use(&self) -> Option<PoolUse> {
+        each_layout_pipeline!(self, p => p.network().pool_use())
     }
 
     /// The readout.
@@ -502,9 +546,19 @@ impl Built<'_> {
         each_pipeline!(self, p => p.poll(now_us, out));
     }
 
+    /// Ends the run at `now_us` (see [`Pipeline::finish`]).
+    pub fn finish<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
+        each_pipeline!(self, p => p.finish(now_us, out));
+    }
+
     /// The network's counters.
     pub fn net_stats(&self) -> &NetStats {
         each_pipeline!(self, p => p.net_stats())
+    }
+
+    /// How full the unit pool is (`None`: no pool).
+    pub fn pool_use(&self) -> Option<PoolUse> {
+        each_pipeline!(self, p => p.pool_use())
     }
 
     /// What the readout consumed: bursts decoded (calibrated, spikes) or spikes (normalized).

@@ -1,7 +1,7 @@
 //! The configuration frame: every field survives the wire, other versions and bad values are
 //! refused, a corrupted frame never reaches the parser, and payload decoding passes it by.
 
-use core_nostd::aer::config::{ConfigError, CONFIG_BYTES, CONFIG_BYTES_V1};
+use core_nostd::aer::config::{ConfigError, CONFIG_BYTES, CONFIG_BYTES_V1, CONFIG_BYTES_V2};
 use core_nostd::aer::events::PayloadDecoder;
 use core_nostd::aer::frame::{FrameDecoder, Kind, MAX_FRAME};
 use core_nostd::fixed::types::U16F16;
@@ -19,6 +19,7 @@ fn davis346(layout: LayoutChoice) -> Settings {
         period_us: 1_000,
         readout: ReadoutChoice::Calibrated,
         tau_a_us: None,
+        unit_pool: None,
     }
 }
 
@@ -70,6 +71,7 @@ fn every_field_survives_the_wire() {
         period_us: 2_000,
         readout: ReadoutChoice::Calibrated,
         tau_a_us: None,
+        unit_pool: None,
     };
     assert_eq!(Settings::parse(&payload(&other)), Ok(other));
     // What only version 2 says: another readout, another tau_A.
@@ -84,8 +86,22 @@ fn every_field_survives_the_wire() {
             ..other
         };
         let p = payload(&v2);
-        assert_eq!((p[0], p.len()), (2, CONFIG_BYTES));
+        assert_eq!((p[0], p.len()), (2, CONFIG_BYTES_V2));
         assert_eq!(Settings::parse(&p), Ok(v2));
+    }
+    // What only version 3 says: a unit pool.
+    for (readout, unit_pool) in [
+        (ReadoutChoice::Normalized, Some(4_096)),
+        (ReadoutChoice::Spikes, Some(1)),
+    ] {
+        let v3 = Settings {
+            readout,
+            unit_pool,
+            ..other
+        };
+        let p = payload(&v3);
+        assert_eq!((p[0], p.len()), (3, CONFIG_BYTES));
+        assert_eq!(Settings::parse(&p), Ok(v3));
     }
 }
 
@@ -97,7 +113,8 @@ fn unknown_versions_readouts_layouts_and_bad_values_are_refused() {
         p[at..at + v.len()].copy_from_slice(v);
         Settings::parse(&p)
     };
-    assert_eq!(with(0, &[3]), Err(ConfigError::Version(3)));
+    assert_eq!(with(0, &[4]), Err(ConfigError::Version(4)));
+    assert_eq!(with(0, &[3]), Err(ConfigError::Length(CONFIG_BYTES_V1)));
     assert_eq!(with(0, &[0]), Err(ConfigError::Version(0)));
     assert_eq!(with(0, &[2]), Err(ConfigError::Length(CONFIG_BYTES_V1)));
     assert_eq!(with(1, &[1]), Err(ConfigError::Readout(1))); // normalized needs version 2
@@ -133,6 +150,16 @@ fn unknown_versions_readouts_layouts_and_bad_values_are_refused() {
     assert_eq!(
         Settings::parse(&payload(&long_tau)),
         value(SettingsError::TauA)
+    );
+    // Version 3: a pool larger than the largest.
+    let huge_pool = Settings {
+        readout: ReadoutChoice::Normalized,
+        unit_pool: Some(core_nostd::settings::MAX_UNIT_POOL + 1),
+        ..davis346(LayoutChoice::Dense)
+    };
+    assert_eq!(
+        Settings::parse(&payload(&huge_pool)),
+        value(SettingsError::UnitPool)
     );
 }
 

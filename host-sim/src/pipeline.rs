@@ -14,7 +14,7 @@ use anyhow::{bail, Context, Result};
 use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::Layout;
-use core_nostd::network::{Cell, NetState, UnitPair};
+use core_nostd::network::{Cell, NetState, PoolUse, UnitPair};
 use core_nostd::oracle::{OracleNetwork, OracleParams, OracleSpikeYaw, OracleYaw};
 use core_nostd::params::TdeParams;
 use core_nostd::readout::spikes::SpikeCell;
@@ -86,6 +86,9 @@ pub struct RunOptions {
     pub rate_hz: u32,
     /// Readout time constant (ms; `None`: the readout's default).
     pub tau_a_ms: Option<f64>,
+    /// Spiking readouts: unit state in a pool of this many unit pairs (`None`: one pair per
+    /// cell; see `core_nostd::network::pool`).
+    pub unit_pool: Option<u32>,
 }
 
 impl Default for RunOptions {
@@ -102,6 +105,7 @@ impl Default for RunOptions {
             cy: None,
             size: None,
             rate_hz: 1000,
+            unit_pool: None,
             tau_a_ms: None,
         }
     }
@@ -135,6 +139,10 @@ pub struct RunOutput {
     pub sample_count: u64,
     /// Gaps and backward jumps of the recording's clock (see [`crate::timeline`]).
     pub jumps: TimeJumps,
+    /// With a unit pool: its size and the most slots in use at once (over all pieces).
+    pub pool: Option<PoolUse>,
+    /// Events whose units found the unit pool full.
+    pub pool_full: u64,
     /// Points for a plot of the output (when asked for).
     pub plot: Option<Decimated>,
     /// The output CSV, written but not yet in place ([`AtomicFile::commit`] puts it there;
@@ -305,7 +313,11 @@ impl RunOptions {
             period_us,
             readout,
             tau_a_us,
+            unit_pool: self.unit_pool,
         };
+        if settings.unit_pool.is_some() && readout == ReadoutChoice::Calibrated {
+            bail!("--unit-pool needs a spiking readout (--readout normalized or spikes)");
+        }
         match settings.layout() {
             Ok(_) => {}
             Err(core_nostd::settings::SettingsError::Layout) => {
@@ -419,12 +431,18 @@ fn fixed(
     let needs = settings.storage().map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut cells = vec![Cell::default(); needs.cells];
     let mut units = vec![UnitPair::default(); needs.unit_pairs];
+    let mut owners = vec![0u32; needs.pool_owners];
     let mut active = vec![0u32; needs.active_words];
     let mut spike_cells = vec![SpikeCell::EMPTY; needs.spike_cells];
     let (mut outputs, mut ignored) = (0u64, 0u64);
+    let (mut pool, mut pool_full) = (None::<PoolUse>, 0u64);
     let mut restart = false;
     while let Some(first) = pieces.next_piece()? {
-        let state = NetState::spiking(&mut cells, &mut units, &mut active);
+        let state = if owners.is_empty() {
+            NetState::spiking(&mut cells, &mut units, &mut active)
+        } else {
+            NetState::pooled(&mut cells, &mut units, &mut owners, &mut active)
+        };
         let mut p = settings
             .build_with(kernel, state, &mut spike_cells)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -438,9 +456,17 @@ fn fixed(
         )?;
         outputs += p.outputs();
         ignored += p.net_stats().ignored;
+        pool_full += p.net_stats().pool_full;
+        if let Some(u) = p.pool_use() {
+            let peak = pool.map_or(0, |q| q.peak).max(u.peak);
+            pool = Some(PoolUse { peak, ..u });
+        }
         restart = true;
     }
-    finish(samples, is_normalized(settings), outputs, ignored)
+    let mut out = finish(samples, is_normalized(settings), outputs, ignored)?;
+    out.pool = pool;
+    out.pool_full = pool_full;
+    Ok(out)
 }
 
 fn is_normalized(settings: &Settings) -> bool {
@@ -608,6 +634,8 @@ fn finish(samples: Samples, normalized: bool, outputs: u64, ignored: u64) -> Res
         seconds: 0.0,
         sample_count,
         jumps: TimeJumps::default(),
+        pool: None,
+        pool_full: 0,
         plot,
         csv,
     })
@@ -644,7 +672,7 @@ fn feed(
         }
         bar.set_position(pieces.events);
     }
-    p.poll(last, &mut |s: YawSample| {
+    p.finish(last, &mut |s: YawSample| {
         k += 1;
         let t = t0 + k * u64::from(period_us);
         out.push(

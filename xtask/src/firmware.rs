@@ -80,6 +80,7 @@ impl Board {
             Self::Stm32h743 => &[
                 (&[".axisram"], 512 * 1024, "AXI SRAM"),
                 (&[".sram1"], 128 * 1024, "SRAM1"),
+                (&[".sram23"], 160 * 1024, "SRAM2/3"),
             ],
         }
     }

@@ -18,6 +18,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
+use core_nostd::settings::{ReadoutChoice, Settings};
 
 use crate::{field, firmware_elf, host_sim, output, root, run};
 
@@ -31,7 +32,7 @@ pub const DEFAULT_LINK_MBIT: f64 = 32.0;
 /// `cargo xtask qemu`'s command line.
 pub const USAGE: &str = "usage: cargo xtask qemu INPUT --out yaw.csv [--via spi|file] [--live] \
 [--paced] [--link-mbit 32] [--icount-shift 0..3] [--work DIR] [--send-config] [host-sim run \
-flags: --layout, --window X0:Y0:W:H, --stride, --rate-hz, --tau-a-ms, --readout, --focal-px, \
+flags: --layout, --window X0:Y0:W:H, --stride, --rate-hz, --tau-a-ms, --readout, --unit-pool, --focal-px, \
 --cx, --cy, --width W --height H, --format]";
 
 /// How the stream reaches the firmware.
@@ -459,6 +460,9 @@ impl Qemu {
             .arg(t0_us.to_string())
             .arg("--out")
             .arg(&self.out);
+        if readout_of(&settings) == Some(ReadoutChoice::Normalized) {
+            c.arg("--normalized");
+        }
         run("host-sim yaw-decode", c)?;
         Ok(Report {
             summary: Summary(summary),
@@ -468,6 +472,15 @@ impl Qemu {
             yaw_bin,
         })
     }
+}
+
+/// The readout the settings (hex of a configuration payload) name, if they parse.
+fn readout_of(hex: &str) -> Option<ReadoutChoice> {
+    let bytes = (0..hex.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(hex.get(i..i + 2)?, 16).ok())
+        .collect::<Option<Vec<u8>>>()?;
+    Settings::parse(&bytes).ok().map(|s| s.readout)
 }
 
 /// Runs `cmd`, killing it after `limit`; returns its exit code (`None` when killed).

@@ -2,9 +2,9 @@
 //! stream so that another camera, lens or layout needs no rebuild.
 //!
 //! ```text
-//! payload (little-endian), format version 1 (36 bytes) or 2 (40 bytes)
+//! payload (little-endian), format version 1 (36 bytes), 2 (40 bytes) or 3 (44 bytes)
 //! offset size field
-//!      0    1 format version (1 or 2); a receiver refuses other versions
+//!      0    1 format version (1, 2 or 3); a receiver refuses other versions
 //!      1    1 readout: 0 = calibrated (rad/s), 1 = normalized, 2 = spikes (rad/s) (1, 2: version 2 only)
 //!      2    1 layout: 0 = dense over the whole sensor, 1 = the paper's boxes, 2 = dense window
 //!      3    1 reserved (0)
@@ -20,23 +20,27 @@
 //!     28    2 window width (> stride)
 //!     30    2 window height (>= 1)
 //!     32    4 output period (µs, >= 1; 1000 = 1 kHz)
-//!     36    4 readout time constant tau_A (µs; 0 = the readout's default) (version 2 only)
+//!     36    4 readout time constant tau_A (µs; 0 = the readout's default) (version >= 2)
+//!     40    4 unit pool: unit-pair slots of the spiking readouts (0 = one pair per cell)
+//!           (version 3 only)
 //! ```
 //!
-//! Settings that version 1 can say (calibrated readout, default `tau_A`) are written as
-//! version 1, so streams of earlier builds and of this one are the same bytes; others as
-//! version 2. The frame's CRC-32 (and header CRC-16) protect it like any frame.
+//! Settings are written in the oldest version that can say them: version 1 (calibrated
+//! readout, default `tau_A`), so streams of earlier builds and of this one are the same bytes;
+//! version 2 without a unit pool; else version 3. The frame's CRC-32 (and header CRC-16) protect it like any frame.
 
 use super::frame::{encode_frame, EncodeFrameError, Kind};
 use crate::fixed::types::U16F16;
 use crate::settings::{LayoutChoice, ReadoutChoice, Settings, SettingsError};
 
 /// The newest configuration format this code writes and reads.
-pub const CONFIG_VERSION: u8 = 2;
+pub const CONFIG_VERSION: u8 = 3;
 /// Payload bytes of format version 1.
 pub const CONFIG_BYTES_V1: usize = 36;
-/// Payload bytes of format version 2 (the largest payload).
-pub const CONFIG_BYTES: usize = 40;
+/// Payload bytes of format version 2.
+pub const CONFIG_BYTES_V2: usize = 40;
+/// Payload bytes of format version 3 (the largest payload).
+pub const CONFIG_BYTES: usize = 44;
 
 /// Why a configuration payload was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,7 +53,7 @@ pub enum ConfigError {
     Readout(u8),
     /// An unknown layout code.
     Layout(u8),
-    /// Values that cannot run (sizes, stride, focal length, window, period, `tau_A`).
+    /// Values that cannot run (sizes, stride, focal length, window, period, `tau_A`, pool).
     Value(SettingsError),
 }
 
@@ -68,7 +72,7 @@ fn le32(b: &[u8], at: usize) -> u32 {
 }
 
 impl Settings {
-    /// The payload (version 1 when it can say these settings, else version 2) and its length.
+    /// The payload (in the oldest version that can say these settings) and its length.
     #[must_use]
     pub fn payload(&self) -> ([u8; CONFIG_BYTES], usize) {
         let (code, (x0, y0, w, h)) = match self.layout {
@@ -82,13 +86,16 @@ impl Settings {
             ReadoutChoice::Spikes => 2,
         };
         let tau = self.tau_a_us.unwrap_or(0);
-        let (version, len) = if readout == 0 && tau == 0 {
-            (1u8, CONFIG_BYTES_V1)
+        let pool = self.unit_pool.unwrap_or(0);
+        let (version, len) = if pool != 0 {
+            (3u8, CONFIG_BYTES)
+        } else if readout == 0 && tau == 0 {
+            (1, CONFIG_BYTES_V1)
         } else {
-            (2, CONFIG_BYTES)
+            (2, CONFIG_BYTES_V2)
         };
         let mut p = [0u8; CONFIG_BYTES];
-        let fields: [(usize, &[u8]); 15] = [
+        let fields: [(usize, &[u8]); 16] = [
             (0, &[version]),
             (1, &[readout]),
             (2, &[code]),
@@ -104,6 +111,7 @@ impl Settings {
             (30, &h.to_le_bytes()),
             (32, &self.period_us.to_le_bytes()),
             (36, &tau.to_le_bytes()),
+            (40, &pool.to_le_bytes()),
         ];
         for (at, bytes) in fields {
             if at < len {
@@ -123,7 +131,8 @@ impl Settings {
         let version = p.first().copied().unwrap_or(0);
         let len = match version {
             1 => CONFIG_BYTES_V1,
-            2 => CONFIG_BYTES,
+            2 => CONFIG_BYTES_V2,
+            3 => CONFIG_BYTES,
             other => return Err(ConfigError::Version(other)),
         };
         if p.len() < len {
@@ -131,8 +140,8 @@ impl Settings {
         }
         let readout = match (p.get(1).copied().unwrap_or(0), version) {
             (0, _) => ReadoutChoice::Calibrated,
-            (1, 2) => ReadoutChoice::Normalized,
-            (2, 2) => ReadoutChoice::Spikes,
+            (1, 2 | 3) => ReadoutChoice::Normalized,
+            (2, 2 | 3) => ReadoutChoice::Spikes,
             (other, _) => return Err(ConfigError::Readout(other)),
         };
         let layout = match p.get(2).copied().unwrap_or(0) {
@@ -147,6 +156,7 @@ impl Settings {
             other => return Err(ConfigError::Layout(other)),
         };
         let tau = if version >= 2 { le32(p, 36) } else { 0 };
+        let pool = if version >= 3 { le32(p, 40) } else { 0 };
         let settings = Self {
             width: le16(p, 4),
             height: le16(p, 6),
@@ -158,6 +168,7 @@ impl Settings {
             period_us: le32(p, 32),
             readout,
             tau_a_us: (tau != 0).then_some(tau),
+            unit_pool: (pool != 0).then_some(pool),
         };
         settings.validate().map_err(ConfigError::Value)?;
         Ok(settings)

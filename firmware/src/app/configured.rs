@@ -4,14 +4,16 @@
 //! A board starts from its build-time defaults (or, in QEMU, its command line) and loops:
 //! [`run`] returns [`Exit::Reconfigure`] with the new configuration, the board runs that. The
 //! yaw stream's sequence counter carries over; the samples follow the new stream's event clock
-//! from its first event on. A configuration that names an unknown layout or needs more cells
-//! than the board has is refused and counted (`Stats::configs_refused`); the running network
-//! goes on.
+//! from its first event on. A configuration that names an unknown layout or needs more RAM
+//! than the board gives its state ([`Memory`]) is refused and counted
+//! (`Stats::configs_refused`); the running network goes on.
 
-use core_nostd::network::{Cell, NetState};
-use core_nostd::settings::{ReadoutChoice, Settings};
+use core_nostd::network::{Cell, NetState, UnitPair};
+use core_nostd::readout::spikes::SpikeCell;
+use core_nostd::settings::{Built, Settings, StorageNeeds};
 use core_nostd::unit::Kernel;
 
+use super::arena::{bytes_for, Arena};
 use super::processing::{self, Clock};
 use super::{CostMeter, YawSink};
 
@@ -28,82 +30,130 @@ pub enum Exit {
 pub enum Refused {
     /// The layout does not fit the sensor (or its stride), or a value is out of range.
     Layout,
-    /// The layout needs more cells than the board has.
-    Cells(usize),
-    /// The readout needs memory the board does not give it (the spiking units).
-    Readout,
+    /// The state needs more RAM (bytes) than the board's region for it has.
+    Memory(usize),
 }
 
-/// The board's memory for network cells: a region used by nothing else, handed out (and
-/// initialised) anew for each configuration.
-pub struct CellStore {
-    base: *mut Cell,
-    cap: usize,
+/// A board's RAM for pipeline state: the network's cells in `cells`; the spiking units (pairs
+/// or a unit pool, the active bitset) and the spike readout's memory in `units` when the board
+/// has a second region, else after the cells.
+pub struct Memory {
+    /// The cells' region (a fast one: CCM, AXI SRAM).
+    pub cells: Arena,
+    /// A second region for the units, if the board gives one.
+    pub units: Option<Arena>,
 }
 
-impl CellStore {
-    /// # Safety
-    /// `base` must point to memory for `cap` cells (aligned, in RAM) that nothing else uses
-    /// for the rest of the program.
-    pub const unsafe fn new(base: *mut Cell, cap: usize) -> Self {
-        Self { base, cap }
-    }
+/// The slices of the units' state, in carving order: `(count, size, align)`.
+fn unit_slices(n: &StorageNeeds) -> [(usize, usize, usize); 4] {
+    use core::mem::{align_of, size_of};
+    [
+        (n.unit_pairs, size_of::<UnitPair>(), align_of::<UnitPair>()),
+        (n.pool_owners, 4, 4),
+        (n.active_words, 4, 4),
+        (
+            n.spike_cells,
+            size_of::<SpikeCell>(),
+            align_of::<SpikeCell>(),
+        ),
+    ]
+}
 
-    /// Cells the region holds.
-    pub fn capacity(&self) -> usize {
-        self.cap
-    }
+/// The sizes of a board's [`Memory`] regions (bytes).
+#[derive(Clone, Copy)]
+struct Capacity {
+    cells: usize,
+    units: Option<usize>,
+}
 
-    /// `n` fresh cells (the region's first `n`), while `self` is borrowed.
-    fn take(&mut self, n: usize) -> Option<&mut [Cell]> {
-        if n > self.cap {
-            return None;
+impl Capacity {
+    /// What the settings need of the board, if they run on it at all.
+    fn needs(&self, settings: &Settings) -> Result<StorageNeeds, Refused> {
+        use core::mem::{align_of, size_of};
+        let needs = settings.storage().map_err(|_| Refused::Layout)?;
+        let cells = (needs.cells, size_of::<Cell>(), align_of::<Cell>());
+        let [a, b, c, d] = unit_slices(&needs);
+        let (cell_bytes, unit_bytes) = match &self.units {
+            Some(_) => (bytes_for(&[cells]), bytes_for(&[a, b, c, d])),
+            None => (bytes_for(&[cells, a, b, c, d]), Some(0)),
+        };
+        let too_big = |b: Option<usize>, cap: usize| b.is_none_or(|b| b > cap);
+        if too_big(cell_bytes, self.cells) {
+            return Err(Refused::Memory(cell_bytes.unwrap_or(usize::MAX)));
         }
-        // SAFETY: the region holds `cap >= n` cells and is used by nothing else (`new`'s
-        // contract); the cells are written before the slice over them is made, and the slice
-        // borrows `self`, so no two slices over the region live at once.
-        unsafe {
-            for i in 0..n {
-                self.base.add(i).write(Cell::default());
-            }
-            Some(core::slice::from_raw_parts_mut(self.base, n))
+        if too_big(unit_bytes, self.units.unwrap_or(0)) {
+            return Err(Refused::Memory(unit_bytes.unwrap_or(usize::MAX)));
+        }
+        Ok(needs)
+    }
+}
+
+impl Memory {
+    fn capacity(&self) -> Capacity {
+        Capacity {
+            cells: self.cells.capacity(),
+            units: self.units.as_ref().map(Arena::capacity),
         }
     }
-}
 
-/// Cells the settings' pipeline needs, if the board can run it at all (a layout that fits, a
-/// readout that needs cells only).
-fn cells_needed(settings: &Settings) -> Result<usize, Refused> {
-    let needs = settings.storage().map_err(|_| Refused::Layout)?;
-    if settings.readout != ReadoutChoice::Calibrated || needs.unit_pairs != 0 {
-        return Err(Refused::Readout);
+    /// The settings' pipeline over fresh state carved from the regions (while `self` is
+    /// borrowed).
+    fn build<'m>(
+        &'m mut self,
+        kernel: &'m Kernel,
+        settings: &Settings,
+    ) -> Result<Built<'m>, Refused> {
+        let needs = self.capacity().needs(settings)?;
+        let short = Refused::Memory(0);
+        let mut cells_region = self.cells.carve();
+        let cells = cells_region.take(needs.cells, Cell::DEFAULT).ok_or(short)?;
+        let mut units_region = self.units.as_mut().map(Arena::carve);
+        let rest = match units_region.as_mut() {
+            Some(r) => r,
+            None => &mut cells_region,
+        };
+        let units = rest
+            .take(needs.unit_pairs, UnitPair::DEFAULT)
+            .ok_or(short)?;
+        let owners = rest.take(needs.pool_owners, 0u32).ok_or(short)?;
+        let active = rest.take(needs.active_words, 0u32).ok_or(short)?;
+        let spike_cells = rest
+            .take(needs.spike_cells, SpikeCell::EMPTY)
+            .ok_or(short)?;
+        let state = if owners.is_empty() {
+            NetState::spiking(cells, units, active)
+        } else {
+            NetState::pooled(cells, units, owners, active)
+        };
+        settings
+            .build_with(kernel, state, spike_cells)
+            .map_err(|_| Refused::Layout)
     }
-    Ok(needs.cells)
 }
 
-/// Runs the settings' pipeline until the stream ends or other settings that fit `cells` arrive.
-/// `seq` is the yaw stream's sequence counter (carried across runs).
+/// Runs the settings' pipeline until the stream ends or other settings that fit `memory`
+/// arrive. `seq` is the yaw stream's sequence counter (carried across runs).
 ///
 /// # Errors
 /// When the settings cannot run (see [`Refused`]).
 pub async fn run<K: YawSink, M: CostMeter>(
     kernel: &Kernel,
     settings: &Settings,
-    cells: &mut CellStore,
+    memory: &mut Memory,
     sink: &mut K,
     clock: Clock,
     seq: &mut u8,
 ) -> Result<Exit, Refused> {
-    let needed = cells_needed(settings)?;
-    let capacity = cells.capacity();
-    let Some(cells) = cells.take(needed) else {
-        return Err(Refused::Cells(needed));
-    };
-    let mut pipeline = settings
-        .build(kernel, NetState::cells(cells))
-        .map_err(|_| Refused::Layout)?;
-    defmt::info!("processing: {} cells", needed);
-    let accept = |new: &Settings| cells_needed(new).is_ok_and(|n| n <= capacity);
+    let capacity = memory.capacity();
+    let needs = capacity.needs(settings)?;
+    let mut pipeline = memory.build(kernel, settings)?;
+    defmt::info!(
+        "processing: {} cells, {} unit pairs, {} pool owners",
+        needs.cells,
+        needs.unit_pairs,
+        needs.pool_owners
+    );
+    let accept = |new: &Settings| capacity.needs(new).is_ok();
     Ok(processing::run::<_, M>(&mut pipeline, sink, clock, seq, settings, &accept).await)
 }
 
@@ -114,13 +164,13 @@ pub async fn run<K: YawSink, M: CostMeter>(
 pub async fn serve<K: YawSink, M: CostMeter>(
     kernel: &Kernel,
     defaults: Settings,
-    cells: &mut CellStore,
+    memory: &mut Memory,
     sink: &mut K,
 ) {
     let (mut good, mut next) = (defaults, defaults);
     let mut seq = 0u8;
     loop {
-        match run::<K, M>(kernel, &next, cells, sink, Clock::Live, &mut seq).await {
+        match run::<K, M>(kernel, &next, memory, sink, Clock::Live, &mut seq).await {
             Ok(Exit::End) => return,
             Ok(Exit::Reconfigure(c)) => {
                 defmt::info!("new configuration: {} x {} px", c.width, c.height);

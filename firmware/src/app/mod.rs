@@ -18,6 +18,7 @@
 //! ([`CostMeter`]) and the executor; tasks are spawned by the board because embassy tasks
 //! cannot be generic.
 
+pub mod arena;
 pub mod configured;
 pub mod input;
 pub mod processing;
@@ -144,6 +145,12 @@ pub struct Stats {
     pub cost_units: u64,
     /// Cost of the input stage's decoding (framing, CRCs, copies), in [`CostMeter`] units.
     pub input_cost_units: u64,
+    /// Spikes of the network's units (spiking readouts), over all runs.
+    pub spikes: u64,
+    /// Unit pool: pairs in it (the last run's), most in use at once, events that found it full.
+    pub pool_capacity: u32,
+    pub pool_peak: u32,
+    pub pool_full: u32,
 }
 
 /// The counters every board reads.
@@ -170,6 +177,10 @@ pub static STATS: CriticalSectionMutex<Cell<Stats>> = CriticalSectionMutex::new(
     yaw_dropped: 0,
     cost_units: 0,
     input_cost_units: 0,
+    spikes: 0,
+    pool_capacity: 0,
+    pool_peak: 0,
+    pool_full: 0,
 }));
 
 /// Changes the counters.

@@ -99,8 +99,9 @@ pub async fn run<K: YawSink, M: CostMeter>(
             Msg::End => {
                 // As `host-sim run`: the samples due up to the last event's time.
                 if let Some((t, _)) = last {
-                    pipeline.poll(t, &mut |s| out.emit(s, 0));
+                    pipeline.finish(t, &mut |s| out.emit(s, 0));
                 }
+                record_network(pipeline);
                 *seq = out.seq;
                 return Exit::End;
             }
@@ -111,8 +112,9 @@ pub async fn run<K: YawSink, M: CostMeter>(
                 Ok(new) if new == *current => {}
                 Ok(new) if accept(&new) => {
                     if let Some((t, _)) = last {
-                        pipeline.poll(t, &mut |s| out.emit(s, 0));
+                        pipeline.finish(t, &mut |s| out.emit(s, 0));
                     }
+                    record_network(pipeline);
                     update_stats(|st| st.configs_applied += 1);
                     *seq = out.seq;
                     return Exit::Reconfigure(new);
@@ -158,6 +160,22 @@ pub async fn run<K: YawSink, M: CostMeter>(
         // Let the input stage run between frames.
         embassy_futures::yield_now().await;
     }
+}
+
+/// Adds a finished run's network counters (spikes, unit pool) to the stats.
+fn record_network(pipeline: &Built<'_>) {
+    let net = *pipeline.net_stats();
+    let pool = pipeline.pool_use();
+    update_stats(|st| {
+        st.spikes += net.spikes_lr + net.spikes_rl;
+        st.pool_full = st
+            .pool_full
+            .saturating_add(u32::try_from(net.pool_full).unwrap_or(u32::MAX));
+        if let Some(p) = pool {
+            st.pool_capacity = p.capacity as u32;
+            st.pool_peak = st.pool_peak.max(p.peak as u32);
+        }
+    });
 }
 
 /// Live clock without frames: extrapolates event time from the last event and polls.

@@ -2,7 +2,8 @@
 //!
 //! This binary runs the firmware's whole event path — raw SPI bytes and link events through the
 //! link receiver (bit realignment, frame checks), the payloads through the payload decoder and
-//! the configuration parser, the events through the calibrated pipeline (network, readout, output clock), on both layouts —
+//! the configuration parser, the events through each readout's pipeline (network, spiking units
+//! in a unit pool, readout, output clock), on both layouts —
 //! on input read with volatile loads, so the compiler can assume nothing about it. Its panic
 //! handler calls a function that exists nowhere: if any panic (unwrap, bounds check, division
 //! by zero, explicit panic) were reachable from that path, the optimised, LTO'd binary would
@@ -17,7 +18,8 @@ use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
 use core_nostd::aer::events::PayloadDecoder;
 use core_nostd::aer::link::{LinkEvent, LinkReceiver};
 use core_nostd::fixed::types::U16F16;
-use core_nostd::network::{Cell, NetState};
+use core_nostd::network::{Cell, NetState, UnitPair};
+use core_nostd::readout::spikes::SpikeCell;
 use core_nostd::readout::YawSample;
 use core_nostd::settings::{LayoutChoice, ReadoutChoice, Settings};
 use core_nostd::unit::Kernel;
@@ -31,7 +33,23 @@ static mut PARAMS: [u32; 8] = [0; 8];
 /// Where outputs go (so that nothing is optimised away).
 static mut SINK: u32 = 0;
 
-static mut CELLS: [Cell; 2_000] = [Cell::DEFAULT; 2_000];
+/// The pipeline's state: cells, a unit pool and its bookkeeping, the spike readout's cells.
+struct State {
+    cells: [Cell; CELLS],
+    units: [UnitPair; POOL],
+    owners: [u32; POOL],
+    active: [u32; POOL / 32],
+    spike_cells: [SpikeCell; CELLS],
+}
+const CELLS: usize = 2_000;
+const POOL: usize = 256;
+static mut STATE: State = State {
+    cells: [Cell::DEFAULT; CELLS],
+    units: [UnitPair::DEFAULT; POOL],
+    owners: [0; POOL],
+    active: [0; POOL / 32],
+    spike_cells: [SpikeCell::EMPTY; CELLS],
+};
 
 fn input() -> [u8; 256] {
     // SAFETY: a volatile read of a static that only this single-threaded program touches.
@@ -61,8 +79,8 @@ fn config(payload: &[u8]) {
     }
 }
 
-/// The pipeline of settings read from the input, on `layout`.
-fn run(layout: LayoutChoice, cells: &mut [Cell]) {
+/// The pipeline of settings read from the input, on `layout`, with `readout`.
+fn run(layout: LayoutChoice, readout: ReadoutChoice, st: &mut State) {
     let settings = Settings {
         width: param(6) as u16,
         height: param(7) as u16,
@@ -72,10 +90,12 @@ fn run(layout: LayoutChoice, cells: &mut [Cell]) {
         layout,
         stride: param(3) as u16,
         period_us: param(2),
-        readout: ReadoutChoice::Calibrated,
+        readout,
         tau_a_us: Some(param(3)),
+        unit_pool: Some(param(5)),
     };
-    let Ok(mut p) = settings.build(&KERNEL, NetState::cells(cells)) else {
+    let state = NetState::pooled(&mut st.cells, &mut st.units, &mut st.owners, &mut st.active);
+    let Ok(mut p) = settings.build_with(&KERNEL, state, &mut st.spike_cells) else {
         return;
     };
     let mut link = LinkReceiver::new();
@@ -116,18 +136,22 @@ fn run(layout: LayoutChoice, cells: &mut [Cell]) {
 
 #[entry]
 fn main() -> ! {
-    // SAFETY: CELLS is only used here, by this single thread.
-    let cells: &mut [Cell] = unsafe { &mut *addr_of_mut!(CELLS) };
-    run(LayoutChoice::PaperBoxes, cells);
-    run(
-        LayoutChoice::Window {
+    // SAFETY: STATE is only used here, by this single thread.
+    let st: &mut State = unsafe { &mut *addr_of_mut!(STATE) };
+    for readout in [
+        ReadoutChoice::Calibrated,
+        ReadoutChoice::Normalized,
+        ReadoutChoice::Spikes,
+    ] {
+        run(LayoutChoice::PaperBoxes, readout, st);
+        let window = LayoutChoice::Window {
             x0: param(1) as u16,
             y0: param(2) as u16,
             w: 40,
             h: 40,
-        },
-        cells,
-    );
+        };
+        run(window, readout, st);
+    }
     loop {
         cortex_m::asm::nop();
     }

@@ -9,8 +9,8 @@
 //!   processing never delays it.
 //! - Yaw frames out: USART1 TX (PA9) at 921 600 baud by DMA2 stream 7 (14 kB/s needed).
 //! - Logs: defmt over RTT; panics: panic-probe (reported over RTT by probe-rs).
-//! - Memory: network cells in the 64 KiB CCM (CPU only), DMA buffers and everything else in
-//!   the 128 KiB SRAM (`memory.x` at the repo root).
+//! - Memory: network cells in the 64 KiB CCM (CPU only); the spiking readouts' units (a unit
+//!   pool), DMA buffers and everything else in the 128 KiB SRAM (`memory.x` at the repo root).
 //! - Live link: whole frames are dropped when processing falls behind, and the clock drives
 //!   stale output when no events arrive.
 //!
@@ -34,7 +34,8 @@ use static_cell::StaticCell;
 
 use super::stm32_common::{self, CycleMeter, UartSink};
 use super::stm32_link::{self, SpiLink};
-use crate::app::configured::{self, CellStore};
+use crate::app::arena::Arena;
+use crate::app::configured::{self, Memory};
 use core_nostd::network::Cell;
 
 bind_interrupts!(struct Irqs {
@@ -53,8 +54,17 @@ const RING_BYTES: usize = 4096;
 /// SPI1 RX request on DMA2 stream 0 (channel 3).
 const SPI1_RX_REQUEST: u8 = 3;
 
+/// SRAM for the spiking units (a unit pool of up to 620 pairs), leaving ~20 KiB for the stack.
+const UNIT_BYTES: usize = 32 * 1024;
+
+/// A region of RAM aligned for every kind of state.
+#[repr(C, align(16))]
+struct Region<const N: usize>([u8; N]);
+
 #[link_section = ".ccmram"]
-static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
+static mut CELLS: MaybeUninit<Region<{ MAX_CELLS * core::mem::size_of::<Cell>() }>> =
+    MaybeUninit::uninit();
+static mut UNITS: MaybeUninit<Region<UNIT_BYTES>> = MaybeUninit::uninit();
 static mut RING: [u8; RING_BYTES] = [0; RING_BYTES];
 
 static KERNEL: Kernel = Kernel::DEFAULT;
@@ -67,9 +77,21 @@ async fn output_task(mut tx: UartTx<'static, embassy_stm32::mode::Async>) {
 
 #[embassy_executor::task]
 async fn process_task() {
-    // SAFETY: CELLS is used by this store only, for the rest of the program.
-    let mut cells = unsafe { CellStore::new(core::ptr::addr_of_mut!(CELLS).cast(), MAX_CELLS) };
-    configured::serve::<_, CycleMeter>(&KERNEL, DEFAULTS, &mut cells, &mut UartSink).await;
+    // SAFETY: CELLS and UNITS are 16-aligned and used by these arenas only, for the rest of
+    // the program.
+    let mut memory = unsafe {
+        Memory {
+            cells: Arena::new(
+                core::ptr::addr_of_mut!(CELLS).cast(),
+                MAX_CELLS * core::mem::size_of::<Cell>(),
+            ),
+            units: Some(Arena::new(
+                core::ptr::addr_of_mut!(UNITS).cast(),
+                UNIT_BYTES,
+            )),
+        }
+    };
+    configured::serve::<_, CycleMeter>(&KERNEL, DEFAULTS, &mut memory, &mut UartSink).await;
 }
 
 fn rcc_config() -> embassy_stm32::Config {

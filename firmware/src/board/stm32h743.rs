@@ -38,7 +38,8 @@ use static_cell::StaticCell;
 
 use super::stm32_common::{self, CycleMeter, UartSink};
 use super::stm32_link::{self, SpiLink};
-use crate::app::configured::{self, CellStore};
+use crate::app::arena::Arena;
+use crate::app::configured::{self, Memory};
 use core_nostd::network::Cell;
 
 bind_interrupts!(struct Irqs {
@@ -57,8 +58,18 @@ const RING_BYTES: usize = 4096;
 /// Yaw frames per UART DMA transfer, at most.
 const TX_FRAMES: usize = 16;
 
+/// SRAM2 and SRAM3 (160 KiB, D2) for the spiking units: a unit pool of up to ~3100 pairs.
+const UNIT_BYTES: usize = 160 * 1024;
+
+/// A region of RAM aligned for every kind of state.
+#[repr(C, align(16))]
+struct Region<const N: usize>([u8; N]);
+
 #[link_section = ".axisram"]
-static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
+static mut CELLS: MaybeUninit<Region<{ MAX_CELLS * core::mem::size_of::<Cell>() }>> =
+    MaybeUninit::uninit();
+#[link_section = ".sram23"]
+static mut UNITS: MaybeUninit<Region<UNIT_BYTES>> = MaybeUninit::uninit();
 // DMA buffers: in SRAM1, which DMA1 reaches (it cannot reach the DTCM). Not loaded (NOLOAD):
 // any bytes are valid, and DMA or the CPU writes them before they are read.
 #[link_section = ".sram1"]
@@ -78,9 +89,21 @@ async fn output_task(mut tx: UartTx<'static, embassy_stm32::mode::Async>) {
 
 #[embassy_executor::task]
 async fn process_task() {
-    // SAFETY: CELLS is used by this store only, for the rest of the program.
-    let mut cells = unsafe { CellStore::new(core::ptr::addr_of_mut!(CELLS).cast(), MAX_CELLS) };
-    configured::serve::<_, CycleMeter>(&KERNEL, DEFAULTS, &mut cells, &mut UartSink).await;
+    // SAFETY: CELLS and UNITS are 16-aligned and used by these arenas only, for the rest of
+    // the program.
+    let mut memory = unsafe {
+        Memory {
+            cells: Arena::new(
+                core::ptr::addr_of_mut!(CELLS).cast(),
+                MAX_CELLS * core::mem::size_of::<Cell>(),
+            ),
+            units: Some(Arena::new(
+                core::ptr::addr_of_mut!(UNITS).cast(),
+                UNIT_BYTES,
+            )),
+        }
+    };
+    configured::serve::<_, CycleMeter>(&KERNEL, DEFAULTS, &mut memory, &mut UartSink).await;
 }
 
 fn rcc_config() -> embassy_stm32::Config {

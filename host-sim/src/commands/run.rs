@@ -71,6 +71,11 @@ pub struct RunFlags {
     /// readout; 100 for the calibrated readout on paper-boxes, whose 200 units see few edges).
     #[arg(long)]
     pub tau_a_ms: Option<f64>,
+    /// Spiking readouts: keep unit state in a pool of N unit pairs, as a microcontroller does
+    /// (default: one pair per cell). Inputs that find it full are lost, counted in the summary
+    /// and flagged OVERFLOW (bit 2) on the next sample.
+    #[arg(long, value_name = "N")]
+    pub unit_pool: Option<u32>,
 }
 
 impl RunFlags {
@@ -89,6 +94,7 @@ impl RunFlags {
             size: self.width.zip(self.height),
             rate_hz: self.rate_hz,
             tau_a_ms: self.tau_a_ms,
+            unit_pool: self.unit_pool,
         }
     }
 }
@@ -140,8 +146,15 @@ pub fn run(args: Args) -> Result<()> {
             j.out_of_order
         )
     };
+    let pool = match out.pool {
+        Some(p) => format!(
+            "; unit pool: peak {} of {} pairs, {} events lost to it full",
+            p.peak, p.capacity, out.pool_full
+        ),
+        None => String::new(),
+    };
     eprintln!(
-        "{} events ({} outside the layout), {} {}, {:.1} M events/s; wrote {} samples to {}{jumps}",
+        "{} events ({} outside the layout), {} {}, {:.1} M events/s; wrote {} samples to {}{jumps}{pool}",
         out.events,
         out.ignored,
         out.outputs,

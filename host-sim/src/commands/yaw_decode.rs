@@ -7,8 +7,8 @@
 //! each frame is printed as it arrives (to stdout, or appended to `--out`), until N frames or S
 //! seconds (default: until interrupted).
 //!
-//! Columns `t_s,yaw_rate_rad_s,flags`, formatted like `host-sim run` so that the two can be
-//! compared line by line: `t_s` = `T + t` on the recording's clock (the frames' `u32` µs
+//! Columns `t_s,yaw_rate_rad_s,flags` (with `--normalized`: `t_s,yaw_norm`, divided by the
+//! peak), formatted like `host-sim run` so that the two can be compared line by line: `t_s` = `T + t` on the recording's clock (the frames' `u32` µs
 //! unwrapped across wraps, plus `--t0-us`), yaw rate = the I16F16 value in rad/s. Corrupted
 //! bytes are skipped (the decoder resynchronises at the next intact frame); the counts go to
 //! stderr.
@@ -22,6 +22,7 @@ use core_nostd::aer::yaw::{YawDecoder, YawFrame, YawStats};
 use core_nostd::time::EventTime;
 
 use crate::output::write_atomically;
+use crate::samples::Samples;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -47,6 +48,10 @@ pub struct Args {
     /// Stop after this many seconds (serial only).
     #[arg(long, requires = "serial")]
     pub seconds: Option<f64>,
+    /// The stream is the paper's normalized readout: write `t_s,yaw_norm`, divided by the
+    /// peak |value| over the capture, as `host-sim run --readout normalized` does.
+    #[arg(long, conflicts_with = "serial")]
+    pub normalized: bool,
 }
 
 /// Unwraps the frames' `u32` µs times to `u64` (a step back of 2^31 µs or more counts as a
@@ -105,6 +110,27 @@ pub fn write_csv(frames: &[(u64, YawFrame)], t0_us: u64, path: &Path) -> Result<
     })
 }
 
+/// Writes the CSV of a normalized readout's stream (`t_s,yaw_norm`), through the same
+/// normalisation as `host-sim run`.
+///
+/// # Errors
+/// When the file cannot be written.
+pub fn write_normalized_csv(frames: &[(u64, YawFrame)], t0_us: u64, path: &Path) -> Result<()> {
+    let mut samples = Samples::to_csv(path, true, false)?;
+    let rows: Vec<(f64, f64, u8)> = frames
+        .iter()
+        .map(|(t, f)| {
+            let t_s = (t0_us + t) as f64 * 1e-6;
+            (t_s, f64::from(f.yaw_rate.to_bits()) / 65536.0, f.flags)
+        })
+        .collect();
+    samples.extend(&rows)?;
+    if let Some(csv) = samples.finish(true)?.csv {
+        csv.commit()?;
+    }
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
     if let Some(port) = &args.serial {
         return run_serial(&args, port);
@@ -114,7 +140,11 @@ pub fn run(args: Args) -> Result<()> {
     };
     let bytes = std::fs::read(input).with_context(|| format!("cannot read {}", input.display()))?;
     let (frames, st) = decode(&bytes);
-    write_csv(&frames, args.t0_us, out)?;
+    if args.normalized {
+        write_normalized_csv(&frames, args.t0_us, out)?;
+    } else {
+        write_csv(&frames, args.t0_us, out)?;
+    }
     eprintln!(
         "{} yaw frames ({} bad, {} missing, {} bytes skipped) -> {}",
         st.ok,

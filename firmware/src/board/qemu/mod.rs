@@ -30,22 +30,26 @@ use core::fmt::Write as _;
 use core::mem::MaybeUninit;
 
 use core_nostd::aer::config::CONFIG_BYTES;
-use core_nostd::network::Cell;
 use core_nostd::settings::Settings;
 use core_nostd::unit::Kernel;
 use defmt_semihosting as _;
 use static_cell::StaticCell;
 
-use crate::app::configured::{self, CellStore, Exit};
+use crate::app::arena::Arena;
+use crate::app::configured::{self, Exit, Memory};
 use crate::app::processing::Clock;
 use crate::app::{self, ByteSource, CostMeter, Overload, SourceError};
 use time::SysTickMeter;
 
-/// Network cells available in PSRAM (16 MiB of them).
-const MAX_CELLS: usize = 16 * 1024 * 1024 / core::mem::size_of::<Cell>();
+/// The pipeline's state: all 16 MiB of the PSRAM (cells, then the units).
+const STATE_BYTES: usize = 16 * 1024 * 1024;
+
+/// A region of RAM aligned for every kind of state.
+#[repr(C, align(16))]
+struct Region([u8; STATE_BYTES]);
 
 #[link_section = ".psram"]
-static mut CELLS: MaybeUninit<[Cell; MAX_CELLS]> = MaybeUninit::uninit();
+static mut STATE: MaybeUninit<Region> = MaybeUninit::uninit();
 
 /// The default TDE parameters (tables computed at compile time).
 static KERNEL: Kernel = Kernel::DEFAULT;
@@ -178,8 +182,9 @@ fn config_error(msg: &str) -> ! {
 
 #[embassy_executor::task]
 async fn main_task(cfg: Config) {
-    // SAFETY: CELLS is used by this store only, for the rest of the program.
-    let mut cells = unsafe { CellStore::new(core::ptr::addr_of_mut!(CELLS).cast(), MAX_CELLS) };
+    // SAFETY: STATE is 16-aligned and used by this arena only, for the rest of the program.
+    let cells = unsafe { Arena::new(core::ptr::addr_of_mut!(STATE).cast(), STATE_BYTES) };
+    let mut memory = Memory { cells, units: None };
     let mut sink = host::YawFile::create();
     let clock = if cfg.live {
         Clock::Live
@@ -190,14 +195,21 @@ async fn main_task(cfg: Config) {
     let mut seq = 0u8;
     loop {
         let run = configured::run::<_, SysTickMeter>(
-            &KERNEL, &stream, &mut cells, &mut sink, clock, &mut seq,
+            &KERNEL,
+            &stream,
+            &mut memory,
+            &mut sink,
+            clock,
+            &mut seq,
         );
         match run.await {
             Ok(Exit::End) => break,
             Ok(Exit::Reconfigure(next)) => stream = next,
             Err(e) => {
                 defmt::error!("cannot run the configuration: {}", e);
-                config_error("bad layout (window outside the sensor, or too many cells)")
+                config_error(
+                    "bad layout (window outside the sensor), or more state than the PSRAM holds",
+                )
             }
         }
     }
@@ -220,7 +232,7 @@ async fn main_task(cfg: Config) {
          skipped_bytes={} bit_slips={} configs_applied={} configs_refused={} source_errors={} \
          decoder_errors={} yaw_frames={} \
          yaw_dropped={} yaw_write_errors={} cells={} {}={} input_{}_per_byte={}.{:02} \
-         mcu_time_us={}\n",
+         mcu_time_us={} spikes={} pool_pairs={} pool_peak={} pool_full={}\n",
         s.events,
         s.frames_processed,
         s.frames_bad,
@@ -247,6 +259,10 @@ async fn main_task(cfg: Config) {
         per_byte_x100 / 100,
         per_byte_x100 % 100,
         embassy_time::Instant::now().as_micros(),
+        s.spikes,
+        s.pool_capacity,
+        s.pool_peak,
+        s.pool_full,
     );
     defmt::info!("{}", line.as_str());
     if !host::write_summary(&line) || sink.errors > 0 {
