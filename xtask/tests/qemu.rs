@@ -21,9 +21,14 @@ const F405_STRIP: &str = "0:122:346:15";
 /// No flags: `host-sim run`'s defaults.
 const DEFAULTS: &[&str] = &[];
 
+/// The working folder of test `name` (as [`work`] made it).
+fn work_path(name: &str) -> PathBuf {
+    root().join("target/xtask-qemu-test").join(name)
+}
+
 /// A fresh working folder for `name` under `target/xtask-qemu-test/`.
 fn work(name: &str) -> PathBuf {
-    let dir = root().join("target/xtask-qemu-test").join(name);
+    let dir = work_path(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("cannot create the test folder");
     dir
@@ -99,6 +104,47 @@ mod replay {
     #[ignore = "needs QEMU and the QEMU firmware build (cargo xtask test)"]
     fn paper_boxes_equal_host_sim_run_byte_for_byte() -> Result<()> {
         equals_host_sim_run("paper-boxes", &["--layout", "paper-boxes"])
+    }
+    /// The spiking network with the paper's normalized readout, its units in a unit pool with
+    /// room for every burst (the dense layout of 90 k cells: ~12 k pairs in use at the peak).
+    #[test]
+    #[ignore = "needs QEMU and the QEMU firmware build (cargo xtask test)"]
+    fn normalized_readout_on_a_unit_pool_equals_host_sim_run() -> Result<()> {
+        equals_host_sim_run(
+            "normalized-pool",
+            &["--readout", "normalized", "--unit-pool", "20000"],
+        )
+    }
+
+    /// The spike readout (rad/s from spike times) on the F405's strip, its units in a unit
+    /// pool too small for the busiest moments: the inputs lost to it are the host's too, and
+    /// the samples after a loss carry OVERFLOW on both.
+    #[test]
+    #[ignore = "needs QEMU and the QEMU firmware build (cargo xtask test)"]
+    fn spike_readout_on_a_full_unit_pool_equals_host_sim_run() -> Result<()> {
+        let flags = [
+            "--readout",
+            "spikes",
+            "--window",
+            F405_STRIP,
+            "--unit-pool",
+            "300",
+        ];
+        equals_host_sim_run("spikes-pool", &flags)?;
+        let csv = std::fs::read_to_string(work_path("spikes-pool").join("host.csv"))?;
+        let overflow = core_nostd::flags::OVERFLOW;
+        let flagged = csv
+            .lines()
+            .skip(1)
+            .filter_map(|l| l.rsplit(',').next()?.parse::<u8>().ok())
+            .filter(|f| f & overflow != 0)
+            .count();
+        assert!(
+            flagged > 0,
+            "a pool of 300 pairs should overflow on the strip"
+        );
+        eprintln!("spike readout on a full pool: {flagged} samples flagged OVERFLOW");
+        Ok(())
     }
 }
 
