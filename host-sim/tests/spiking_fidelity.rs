@@ -1,7 +1,7 @@
 //! The spiking network with every spike (dense layout, stride 2, the paper's normalized
-//! readout) against the f64 oracle network on the shared recordings: the fixed-point core's
-//! total spike count within 0.3 % of the oracle's, and its normalized output correlating at
-//! least 0.999 with the oracle's (the paper's readout, divided by its maximum: the correlation
+//! readout; its units one pair per cell, and in a unit pool) against the f64 oracle network on
+//! the shared recordings: the fixed-point core's total spike count within 0.3 % of the
+//! oracle's, and its normalized output correlating at least 0.999 with the oracle's (the paper's readout, divided by its maximum: the correlation
 //! does not depend on that scale). Reads `../shared/data` (skips with a notice when it is absent,
 //! fails when it is absent and `CI` is set). About a minute in release mode (the f64 oracle
 //! dominates).
@@ -49,13 +49,20 @@ fn relative(events: &[Event64]) -> Vec<Event> {
 }
 
 /// The fixed-point network and the normalized readout, as `host-sim run --readout normalized`
-/// runs them (output grid from the first event), then every spike up to the last event.
-fn fixed(layout: Dense, events: &[Event]) -> Outcome {
+/// runs them (output grid from the first event), then every spike up to the last event;
+/// `pooled`: with its units in a unit pool (as large as the layout: never full), as
+/// `--unit-pool` runs them.
+fn fixed(layout: Dense, events: &[Event], pooled: bool) -> Outcome {
     let kernel = Kernel::DEFAULT;
     let n = layout.cell_count();
     let (mut cells, mut units) = (vec![Cell::default(); n], vec![UnitPair::default(); n]);
     let mut active = vec![0u32; active_words(n)];
-    let state = NetState::spiking(&mut cells, &mut units, &mut active);
+    let mut owners = vec![0u32; n];
+    let state = if pooled {
+        NetState::pooled(&mut cells, &mut units, &mut owners, &mut active)
+    } else {
+        NetState::spiking(&mut cells, &mut units, &mut active)
+    };
     let mut net = Network::new(&kernel, layout, state, InputFilter::All).expect("network");
     let mut readout = Normalized::new(TAU_A_US, PERIOD_US);
     let mut samples = Vec::new();
@@ -131,7 +138,7 @@ fn oracle(layout: Dense, events: &[Event]) -> Outcome {
 }
 
 /// Runs both models on one recording; returns (fixed spikes, oracle spikes, correlation).
-fn compare(path: &std::path::Path) -> (u64, u64, f64) {
+fn compare(path: &std::path::Path, pooled: bool) -> (u64, u64, f64) {
     let rec = formats::read(path, None).expect("read recording");
     let (w, h) = match (rec.width, rec.height) {
         (Some(w), Some(h)) => (w, h),
@@ -139,7 +146,7 @@ fn compare(path: &std::path::Path) -> (u64, u64, f64) {
     };
     let layout = Dense::new(w, h, 2).expect("layout");
     let events = relative(&rec.events);
-    let f = fixed(layout, &events);
+    let f = fixed(layout, &events, pooled);
     let o = oracle(layout, &events);
     let n = f.samples.len().min(o.samples.len());
     assert!(n > 50, "{}: only {n} samples", path.display());
@@ -148,18 +155,21 @@ fn compare(path: &std::path::Path) -> (u64, u64, f64) {
 }
 
 fn check(name: &str, path: &std::path::Path) {
-    let (nf, no, corr) = compare(path);
-    let rel = nf as f64 / no as f64 - 1.0;
-    eprintln!(
-        "{name}: spikes fixed {nf} vs oracle {no} ({:+.4} %), normalized output correlation {corr:.6}",
-        rel * 100.0
-    );
-    assert!(no > 1_000, "{name}: too few spikes to judge ({no})");
-    assert!(
-        rel.abs() <= 0.003,
-        "{name}: fixed {nf} vs oracle {no} spikes"
-    );
-    assert!(corr >= 0.999, "{name}: correlation {corr}");
+    for pooled in [false, true] {
+        let (nf, no, corr) = compare(path, pooled);
+        let rel = nf as f64 / no as f64 - 1.0;
+        let what = if pooled { "pooled" } else { "dense" };
+        eprintln!(
+            "{name} ({what}): spikes fixed {nf} vs oracle {no} ({:+.4} %), normalized output correlation {corr:.6}",
+            rel * 100.0
+        );
+        assert!(no > 1_000, "{name}: too few spikes to judge ({no})");
+        assert!(
+            rel.abs() <= 0.003,
+            "{name} ({what}): fixed {nf} vs oracle {no} spikes"
+        );
+        assert!(corr >= 0.999, "{name} ({what}): correlation {corr}");
+    }
 }
 
 #[test]
