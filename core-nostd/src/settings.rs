@@ -534,7 +534,30 @@ macro_rules! each_pipeline {
     };
 }
 
+/// Work on the one pipeline a [`Built`] holds, with its layout and readout known at compile
+/// time: a loop over many events inside [`WithPipeline::run`] dispatches on them once
+/// ([`Built::with`]), not once per event.
+pub trait WithPipeline {
+    /// What the work gives back.
+    type Output;
+    /// Does the work on `p`.
+    fn run<L: Layout, R: Readout>(self, p: &mut Pipeline<'_, L, R>) -> Self::Output;
+}
+
 impl Built<'_> {
+    /// Runs `work` on the pipeline (one dispatch on the readout and layout).
+    #[inline]
+    pub fn with<W: WithPipeline>(&mut self, work: W) -> W::Output {
+        match self {
+            Built::Calibrated(OnLayout::Dense(p)) => work.run(p),
+            Built::Calibrated(OnLayout::Boxes(p)) => work.run(p),
+            Built::Normalized(OnLayout::Dense(p)) => work.run(p),
+            Built::Normalized(OnLayout::Boxes(p)) => work.run(p),
+            Built::Spikes(OnLayout::Dense(p)) => work.run(p),
+            Built::Spikes(OnLayout::Boxes(p)) => work.run(p),
+        }
+    }
+
     /// Processes one event (see [`Pipeline::event`]).
     #[inline]
     pub fn event<F: FnMut(YawSample)>(&mut self, ev: Event, out: &mut F) {

@@ -8,12 +8,17 @@
 //! the last event with the MCU clock (flag CLOCK), and the pipeline flags samples STALE once
 //! 100 ms have passed without events.
 
+use core::marker::PhantomData;
 use core_nostd::aer::events::PayloadDecoder;
 use core_nostd::aer::frame::Kind;
 use core_nostd::aer::yaw::YawFrame;
 use core_nostd::flags;
 use core_nostd::readout::YawSample;
-use core_nostd::settings::{Built, Settings};
+
+use core_nostd::layout::Layout;
+use core_nostd::pipeline::Pipeline;
+use core_nostd::readout::Readout;
+use core_nostd::settings::{Built, Settings, WithPipeline};
 use core_nostd::time::EventTime;
 use embassy_futures::select::{select, Either};
 use embassy_time::{Duration, Instant, Timer};
@@ -132,16 +137,11 @@ pub async fn run<K: YawSink, M: CostMeter>(
             seq: frame.seq,
             payload: frame.payload(),
         };
-        let mut cost: u64 = 0;
-        let mut events: u32 = 0;
-        let mut last_t = None;
-        payload.frame(&f, |ev| {
-            let a = M::now();
-            pipeline.event(ev, &mut |s| out.emit(s, 0));
-            let b = M::now();
-            cost += u64::from(M::ticks(a, b));
-            events += 1;
-            last_t = Some(ev.t_us);
+        let (cost, events, last_t) = pipeline.with(FrameEvents::<K, M> {
+            payload: &mut payload,
+            frame: &f,
+            out: &mut out,
+            meter: PhantomData,
         });
         if let Some(t) = last_t {
             last = Some((t, Instant::now()));
@@ -159,6 +159,34 @@ pub async fn run<K: YawSink, M: CostMeter>(
         });
         // Let the input stage run between frames.
         embassy_futures::yield_now().await;
+    }
+}
+
+/// One frame's events through the pipeline (inside [`Built::with`]: the pipeline's layout and
+/// readout are known, no dispatch per event), each timed with the cost meter `M`.
+struct FrameEvents<'x, 's, 'p, K: YawSink, M: CostMeter> {
+    payload: &'x mut PayloadDecoder,
+    frame: &'x core_nostd::aer::frame::Frame<'p>,
+    out: &'x mut Out<'s, K>,
+    meter: PhantomData<M>,
+}
+
+impl<K: YawSink, M: CostMeter> WithPipeline for FrameEvents<'_, '_, '_, K, M> {
+    /// Cost (meter ticks), events, the last event's time.
+    type Output = (u64, u32, Option<u32>);
+
+    fn run<L: Layout, R: Readout>(self, p: &mut Pipeline<'_, L, R>) -> Self::Output {
+        let (mut cost, mut events, mut last_t) = (0u64, 0u32, None);
+        let out = self.out;
+        self.payload.frame(self.frame, |ev| {
+            let a = M::now();
+            p.event(ev, &mut |s| out.emit(s, 0));
+            let b = M::now();
+            cost += u64::from(M::ticks(a, b));
+            events += 1;
+            last_t = Some(ev.t_us);
+        });
+        (cost, events, last_t)
     }
 }
 
