@@ -5,7 +5,12 @@
 //! [`Settings::storage`]: core_nostd::settings::Settings::storage
 
 use core::marker::PhantomData;
-use core::mem::{align_of, size_of};
+use core::mem::{align_of, size_of, MaybeUninit};
+
+/// A block of `N` bytes of RAM for an [`Arena`], aligned for every kind of state (a board
+/// places one in a static, in the section of the memory it belongs to).
+#[repr(C, align(16))]
+pub struct Region<const N: usize>([u8; N]);
 
 /// A region of RAM that slices of state are carved from.
 pub struct Arena {
@@ -19,6 +24,15 @@ impl Arena {
     /// rest of the program.
     pub const unsafe fn new(base: *mut u8, len: usize) -> Self {
         Self { base, len }
+    }
+
+    /// The arena over a board's static `region`.
+    ///
+    /// # Safety
+    /// Nothing else may use `region` for the rest of the program.
+    pub unsafe fn over<const N: usize>(region: *mut MaybeUninit<Region<N>>) -> Self {
+        // SAFETY: a `Region` is N bytes aligned to 16; the caller gives it to this arena only.
+        unsafe { Self::new(region.cast(), N) }
     }
 
     /// Bytes in the region.

@@ -34,7 +34,7 @@ use static_cell::StaticCell;
 
 use super::stm32_common::{self, CycleMeter, UartSink};
 use super::stm32_link::{self, SpiLink};
-use crate::app::arena::Arena;
+use crate::app::arena::{Arena, Region};
 use crate::app::configured::{self, Memory};
 use core_nostd::network::Cell;
 
@@ -49,6 +49,8 @@ bind_interrupts!(struct Irqs {
 const DEFAULTS: Settings = stm32_common::davis346_full_width(MAX_CELLS);
 /// Cells reserved in CCM: as many as its 64 KiB hold (the dense window is the largest layout).
 const MAX_CELLS: usize = 64 * 1024 / core::mem::size_of::<Cell>();
+/// Bytes of the cells' region.
+const CELL_BYTES: usize = MAX_CELLS * core::mem::size_of::<Cell>();
 /// SPI DMA ring size (bytes): 4 KiB is ~2 ms at 2 MB/s.
 const RING_BYTES: usize = 4096;
 /// SPI1 RX request on DMA2 stream 0 (channel 3).
@@ -57,13 +59,8 @@ const SPI1_RX_REQUEST: u8 = 3;
 /// SRAM for the spiking units (a unit pool of up to 620 pairs), leaving ~20 KiB for the stack.
 const UNIT_BYTES: usize = 32 * 1024;
 
-/// A region of RAM aligned for every kind of state.
-#[repr(C, align(16))]
-struct Region<const N: usize>([u8; N]);
-
 #[link_section = ".ccmram"]
-static mut CELLS: MaybeUninit<Region<{ MAX_CELLS * core::mem::size_of::<Cell>() }>> =
-    MaybeUninit::uninit();
+static mut CELLS: MaybeUninit<Region<CELL_BYTES>> = MaybeUninit::uninit();
 static mut UNITS: MaybeUninit<Region<UNIT_BYTES>> = MaybeUninit::uninit();
 static mut RING: [u8; RING_BYTES] = [0; RING_BYTES];
 
@@ -77,18 +74,12 @@ async fn output_task(mut tx: UartTx<'static, embassy_stm32::mode::Async>) {
 
 #[embassy_executor::task]
 async fn process_task() {
-    // SAFETY: CELLS and UNITS are 16-aligned and used by these arenas only, for the rest of
+    // SAFETY: CELLS and UNITS are used by these arenas only, for the rest of
     // the program.
     let mut memory = unsafe {
         Memory {
-            cells: Arena::new(
-                core::ptr::addr_of_mut!(CELLS).cast(),
-                MAX_CELLS * core::mem::size_of::<Cell>(),
-            ),
-            units: Some(Arena::new(
-                core::ptr::addr_of_mut!(UNITS).cast(),
-                UNIT_BYTES,
-            )),
+            cells: Arena::over(core::ptr::addr_of_mut!(CELLS)),
+            units: Some(Arena::over(core::ptr::addr_of_mut!(UNITS))),
         }
     };
     configured::serve::<_, CycleMeter>(&KERNEL, DEFAULTS, &mut memory, &mut UartSink).await;

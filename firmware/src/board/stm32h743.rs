@@ -38,7 +38,7 @@ use static_cell::StaticCell;
 
 use super::stm32_common::{self, CycleMeter, UartSink};
 use super::stm32_link::{self, SpiLink};
-use crate::app::arena::Arena;
+use crate::app::arena::{Arena, Region};
 use crate::app::configured::{self, Memory};
 use core_nostd::network::Cell;
 
@@ -53,6 +53,8 @@ bind_interrupts!(struct Irqs {
 const DEFAULTS: Settings = stm32_common::davis346_full_width(MAX_CELLS);
 /// Cells the AXI SRAM holds (512 KiB of 12-byte cells).
 const MAX_CELLS: usize = 512 * 1024 / core::mem::size_of::<Cell>();
+/// Bytes of the cells' region.
+const CELL_BYTES: usize = MAX_CELLS * core::mem::size_of::<Cell>();
 /// SPI DMA ring size (bytes): 4 KiB is ~1 ms at 4 MB/s.
 const RING_BYTES: usize = 4096;
 /// Yaw frames per UART DMA transfer, at most.
@@ -61,13 +63,8 @@ const TX_FRAMES: usize = 16;
 /// SRAM2 and SRAM3 (160 KiB, D2) for the spiking units: a unit pool of up to ~3100 pairs.
 const UNIT_BYTES: usize = 160 * 1024;
 
-/// A region of RAM aligned for every kind of state.
-#[repr(C, align(16))]
-struct Region<const N: usize>([u8; N]);
-
 #[link_section = ".axisram"]
-static mut CELLS: MaybeUninit<Region<{ MAX_CELLS * core::mem::size_of::<Cell>() }>> =
-    MaybeUninit::uninit();
+static mut CELLS: MaybeUninit<Region<CELL_BYTES>> = MaybeUninit::uninit();
 #[link_section = ".sram23"]
 static mut UNITS: MaybeUninit<Region<UNIT_BYTES>> = MaybeUninit::uninit();
 // DMA buffers: in SRAM1, which DMA1 reaches (it cannot reach the DTCM). Not loaded (NOLOAD):
@@ -89,18 +86,12 @@ async fn output_task(mut tx: UartTx<'static, embassy_stm32::mode::Async>) {
 
 #[embassy_executor::task]
 async fn process_task() {
-    // SAFETY: CELLS and UNITS are 16-aligned and used by these arenas only, for the rest of
+    // SAFETY: CELLS and UNITS are used by these arenas only, for the rest of
     // the program.
     let mut memory = unsafe {
         Memory {
-            cells: Arena::new(
-                core::ptr::addr_of_mut!(CELLS).cast(),
-                MAX_CELLS * core::mem::size_of::<Cell>(),
-            ),
-            units: Some(Arena::new(
-                core::ptr::addr_of_mut!(UNITS).cast(),
-                UNIT_BYTES,
-            )),
+            cells: Arena::over(core::ptr::addr_of_mut!(CELLS)),
+            units: Some(Arena::over(core::ptr::addr_of_mut!(UNITS))),
         }
     };
     configured::serve::<_, CycleMeter>(&KERNEL, DEFAULTS, &mut memory, &mut UartSink).await;

@@ -35,7 +35,7 @@ use core_nostd::unit::Kernel;
 use defmt_semihosting as _;
 use static_cell::StaticCell;
 
-use crate::app::arena::Arena;
+use crate::app::arena::{Arena, Region};
 use crate::app::configured::{self, Exit, Memory};
 use crate::app::processing::Clock;
 use crate::app::{self, ByteSource, CostMeter, Overload, SourceError};
@@ -44,12 +44,8 @@ use time::SysTickMeter;
 /// The pipeline's state: all 16 MiB of the PSRAM (cells, then the units).
 const STATE_BYTES: usize = 16 * 1024 * 1024;
 
-/// A region of RAM aligned for every kind of state.
-#[repr(C, align(16))]
-struct Region([u8; STATE_BYTES]);
-
 #[link_section = ".psram"]
-static mut STATE: MaybeUninit<Region> = MaybeUninit::uninit();
+static mut STATE: MaybeUninit<Region<STATE_BYTES>> = MaybeUninit::uninit();
 
 /// The default TDE parameters (tables computed at compile time).
 static KERNEL: Kernel = Kernel::DEFAULT;
@@ -182,8 +178,8 @@ fn config_error(msg: &str) -> ! {
 
 #[embassy_executor::task]
 async fn main_task(cfg: Config) {
-    // SAFETY: STATE is 16-aligned and used by this arena only, for the rest of the program.
-    let cells = unsafe { Arena::new(core::ptr::addr_of_mut!(STATE).cast(), STATE_BYTES) };
+    // SAFETY: STATE is used by this arena only, for the rest of the program.
+    let cells = unsafe { Arena::over(core::ptr::addr_of_mut!(STATE)) };
     let mut memory = Memory { cells, units: None };
     let mut sink = host::YawFile::create();
     let clock = if cfg.live {
