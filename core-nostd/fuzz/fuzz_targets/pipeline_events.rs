@@ -1,4 +1,4 @@
-//! The network and both readouts on arbitrary events: coordinates out of range, time going
+//! The network (its units per cell and in a unit pool) and the three readouts on arbitrary events: coordinates out of range, time going
 //! backwards, equal timestamps, huge bursts at one pixel, the u32 clock wrapping. No panic, and
 //! the calibrated output is a finite rate within the histograms' range.
 #![no_main]
@@ -8,7 +8,8 @@ use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::{Dense, Layout};
 use core_nostd::network::{active_words, Cell, InputFilter, NetState, Network, UnitPair};
 use core_nostd::pipeline::Pipeline;
-use core_nostd::settings::{LayoutChoice, Settings};
+use core_nostd::readout::spikes::SpikeCell;
+use core_nostd::settings::{LayoutChoice, ReadoutChoice, Settings};
 use core_nostd::readout::normalized::Normalized;
 use core_nostd::unit::Kernel;
 use libfuzzer_sys::fuzz_target;
@@ -78,4 +79,30 @@ fuzz_target!(|data: &[u8]| {
     for ev in events(data) {
         p.event(ev, &mut |_| {});
     }
+    // The spike readout over a unit pool of 16 pairs (full most of the time).
+    let settings = Settings {
+        readout: ReadoutChoice::Spikes,
+        unit_pool: Some(16),
+        ..Settings::for_sensor(64, 24, U16F16::from_num(60))
+    };
+    let Ok(needs) = settings.storage() else {
+        return;
+    };
+    let mut cells = vec![Cell::default(); needs.cells];
+    let mut units = vec![UnitPair::default(); needs.unit_pairs];
+    let mut owners = vec![0u32; needs.pool_owners];
+    let mut active = vec![0u32; needs.active_words];
+    let mut spike_cells = vec![SpikeCell::EMPTY; needs.spike_cells];
+    let state = NetState::pooled(&mut cells, &mut units, &mut owners, &mut active);
+    let Ok(mut p) = settings.build_with(&k, state, &mut spike_cells) else {
+        return;
+    };
+    let mut last = 0;
+    for ev in events(data) {
+        last = ev.t_us;
+        p.event(ev, &mut |_| {});
+    }
+    p.finish(last, &mut |_| {});
+    let pool = p.pool_use().expect("a pool");
+    assert!(pool.peak <= 16 && pool.used <= pool.peak);
 });
