@@ -14,16 +14,9 @@ use core_nostd::settings::{Built, Settings, StorageNeeds};
 use core_nostd::unit::Kernel;
 
 use super::arena::{bytes_for, Arena};
+pub use super::processing::Exit;
 use super::processing::{self, Clock};
 use super::{CostMeter, YawSink};
-
-/// How [`run`] ended.
-pub enum Exit {
-    /// The stream ended (replays).
-    End,
-    /// A different configuration arrived; run it next.
-    Reconfigure(Settings),
-}
 
 /// Why settings cannot run.
 #[derive(Clone, Copy, Debug, defmt::Format)]

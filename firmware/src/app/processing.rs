@@ -24,8 +24,15 @@ use embassy_futures::select::{select, Either};
 use embassy_time::{Duration, Instant, Timer};
 use fixed::types::I16F16;
 
-use super::configured::Exit;
 use super::{take_flags, update_stats, CostMeter, Msg, YawSink, FRAMES};
+
+/// How [`run`] ended (and so how `configured::run` ends).
+pub enum Exit {
+    /// The stream ended (replays).
+    End,
+    /// A different configuration arrived; run it next.
+    Reconfigure(Settings),
+}
 
 /// Whether the MCU clock drives the output when no events arrive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
