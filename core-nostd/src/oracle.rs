@@ -425,6 +425,8 @@ pub struct OracleYaw<L: crate::layout::Layout> {
     phase: u32,
     last: Option<f64>,
     last_event: f64,
+    /// Whether the layout's units have twins ([`crate::readout::calibrated::has_twins`]).
+    twins: bool,
     /// Decoded bursts so far.
     pub samples: u64,
 }
@@ -451,6 +453,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let slow_tau = tau_a_us.max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
         let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
         let fields = [field(tau_a_us), field(slow_tau)];
+        let twins = crate::readout::calibrated::has_twins(&layout);
         Self {
             p,
             layout,
@@ -466,6 +469,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             phase: 0,
             last: None,
             last_event: 0.0,
+            twins,
             samples: 0,
         }
     }
@@ -552,7 +556,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             } else {
                 (self.p.w_trg * lr, self.p.w_trg * rl, false)
             };
-            if lose > 0.5 * drive {
+            if lose * f64::from(1u32 << crate::readout::calibrated::DOMINANCE_LOG2) > drive {
                 return None;
             }
             let ratio = drive / (self.p.w_trg * own);
@@ -620,15 +624,23 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         self.next_out = Some(next);
     }
 
-    /// The estimate of the population that decodes more per unit of its time constant.
+    /// The estimate of the population whose decodes agree more in sign per unit of its time
+    /// constant (on a layout without twin units, that decodes more); the slow units' scaled
+    /// by their recent share of decodes.
     fn estimate(&self) -> Option<f64> {
         let [fast, slow] = &self.fields;
-        let field = if fast.rate() < slow.rate() {
-            slow
-        } else {
-            fast
+        let by = |f: &OracleField| {
+            if self.twins {
+                f.consistent_rate()
+            } else {
+                f.rate()
+            }
         };
-        field.estimate()
+        if by(fast) < by(slow) {
+            slow.estimate().map(|v| v * slow.recent_share())
+        } else {
+            fast.estimate()
+        }
     }
 }
 
@@ -1079,11 +1091,17 @@ const M_MAX_F64: f64 = 65_528.0;
 /// Decoded TRG events of one pixel at most this far apart (µs) are one onset.
 const SAME_ONSET_F64: f64 = 50.0;
 
+/// [`crate::readout::field::RANDOM_AGREEMENT`] in samples.
+const RANDOM_AGREEMENT: f64 = crate::readout::field::RANDOM_AGREEMENT as f64;
+
 /// The field estimator of [`crate::readout::field`] in f64, one population: leaky signed
 /// histograms of `log2 |rate|` per region, decayed exactly each period; per region the median
 /// and its variance from the interquartile range; per column band and side the intercept at
-/// `Y = 0` of a weighted fit; the weighted median over the column bands where both sides have
-/// one, if at least `support` do; no answer when the decodes have all but stopped.
+/// `Y = 0` of a weighted fit; the weighted median over the means of every left band's
+/// intercept with every right band's, if each side has values in at least `support` bands
+/// and either `support` mirrored bands have both or more than half of the mirrored bands'
+/// sides have one, and if neither sign holds more than a quarter of the weight; no answer
+/// when the decodes have all but stopped.
 pub struct OracleField {
     focal: f64,
     cx: f64,
@@ -1198,6 +1216,37 @@ impl OracleField {
         self.hist.iter().flatten().flatten().sum::<f64>() / self.tau_a
     }
 
+    /// Decodes per µs that agree in sign within their region: `Σ max(0, (P - N)² / (P + N) - 2)`
+    /// over the regions (2 samples: what random signs exceed one time in 20), over the
+    /// histograms' time constant.
+    pub fn consistent_rate(&self) -> f64 {
+        let agree: f64 = self
+            .hist
+            .iter()
+            .map(|[neg, pos]| {
+                let (n, p) = (neg.iter().sum::<f64>(), pos.iter().sum::<f64>());
+                if n + p > 0.0 {
+                    ((p - n) * (p - n) / (p + n) - RANDOM_AGREEMENT).max(0.0)
+                } else {
+                    0.0
+                }
+            })
+            .sum();
+        agree / self.tau_a
+    }
+
+    /// 5/4 of the decode rate of the last [`crate::readout::field::SHORT_TAU_US`] over that of
+    /// the histograms, at most 1.
+    pub fn recent_share(&self) -> f64 {
+        let short = self.short / f64::from(crate::readout::field::SHORT_TAU_US);
+        let rate = self.rate();
+        if rate > 0.0 {
+            (1.25 * short / rate).min(1.0)
+        } else {
+            0.0
+        }
+    }
+
     /// The rotation the field shows, if it shows one.
     pub fn estimate(&self) -> Option<f64> {
         let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
@@ -1205,23 +1254,59 @@ impl OracleField {
             return None;
         }
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
-        for b in 0..COLS {
-            let fits = [self.column_intercept(0, b), self.column_intercept(1, b)];
-            let est = match (fits, self.paired_bands == 0) {
-                ([Some((a, va)), Some((c, vc))], _) => Some((0.5 * (a + c), 0.25 * (va + vc))),
-                ([Some(a), None] | [None, Some(a)], true) => Some(a),
-                _ => None,
+        if self.paired_bands > 0 {
+            // Every left band with every right band; each side needs `support` bands, and
+            // `support` of them mirrored or more than half of the mirrored bands' sides.
+            let fits = |side| -> std::vec::Vec<Option<(f64, f64)>> {
+                (0..COLS).map(|b| self.column_intercept(side, b)).collect()
             };
-            values.extend(est.map(|(v, var)| (v, 1.0 / var)));
-        }
-        if self.paired_bands > 0 && values.len() < self.support.min(self.paired_bands).max(1) {
-            return None;
+            let (left, right) = (fits(0), fits(1));
+            let mirrored = left
+                .iter()
+                .zip(&right)
+                .filter(|(a, c)| a.is_some() && c.is_some())
+                .count();
+            let (left, right): (std::vec::Vec<_>, std::vec::Vec<_>) = (
+                left.into_iter().flatten().collect(),
+                right.into_iter().flatten().collect(),
+            );
+            let need = self.support.min(self.paired_bands).max(1);
+            if left.len() < need
+                || right.len() < need
+                || (mirrored < need && left.len() + right.len() <= self.paired_bands)
+            {
+                return None;
+            }
+            for &(a, va) in &left {
+                for &(c, vc) in &right {
+                    values.push((0.5 * (a + c), 1.0 / (0.25 * (va + vc))));
+                }
+            }
+        } else {
+            for b in 0..COLS {
+                let est = match [self.column_intercept(0, b), self.column_intercept(1, b)] {
+                    [Some((a, va)), Some((c, vc))] => Some((0.5 * (a + c), 0.25 * (va + vc))),
+                    [Some(a), None] | [None, Some(a)] => Some(a),
+                    [None, None] => None,
+                };
+                values.extend(est.map(|(v, var)| (v, 1.0 / var)));
+            }
         }
         let total: f64 = values.iter().map(|v| v.1).sum();
         if values.is_empty() || total <= 0.0 {
             return None;
         }
         values.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let signed = |positive: bool| -> f64 {
+            values
+                .iter()
+                .filter(|v| if positive { v.0 > 0.0 } else { v.0 < 0.0 })
+                .map(|v| v.1)
+                .sum()
+        };
+        if signed(true).min(signed(false)) * f64::from(crate::readout::field::SPLIT_SHARE) > total {
+            return None;
+        }
         let mut acc = 0.0;
         for &(x, w) in &values {
             acc += w;

@@ -5,8 +5,11 @@
 //! at 0.05 rad/s or more, and for a camera that does not turn, the RMS output (samples flagged
 //! "no evidence" count as 0).
 //!
-//! The bounds are what the readout reaches today with a margin (README: "Flight regimes"); the
-//! issue's targets are tighter and not all met: see the README for where it falls short.
+//! The bounds are what the readout reaches today with a margin (README: "Flight regimes"; on
+//! these scenes it reaches correlation 0.959 / 0.946 / 0.930 / 0.989, RMSE 15.2 / 19.1 / 23.5
+//! / 10.2 % of peak for car / drone / hover / rotation, "no evidence" while turning 3.5-5.9 %,
+//! and RMS output 0.000 and 0.014 rad/s for the static scenes); the targets are
+//! tighter and not all met: see the README for where it falls short.
 
 use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
@@ -118,24 +121,24 @@ fn check_turning(f: &Figures, corr: f64, rmse_rel: f64, no_evidence: f64) {
 fn car_forward_motion() {
     let f = scene(Regime::Car, 3, 3.0);
     report("car", &f);
-    check_turning(&f, 0.85, 0.3, 0.1);
+    check_turning(&f, 0.93, 0.2, 0.1);
 }
 
 #[test]
 fn drone_forward_flight() {
     let f = scene(Regime::Drone, 3, 2.5);
     report("drone", &f);
-    check_turning(&f, 0.85, 0.3, 0.1);
+    check_turning(&f, 0.92, 0.23, 0.1);
 }
 
 #[test]
 fn hover_slow_yaw() {
     let f = scene(Regime::Hover, 3, 4.0);
     report("hover", &f);
-    assert!(f.corr >= 0.5, "correlation {:.3}", f.corr);
-    assert!(f.rmse <= 0.06, "RMSE {:.3} rad/s", f.rmse);
+    assert!(f.corr >= 0.9, "correlation {:.3}", f.corr);
+    assert!(f.rmse <= 0.035, "RMSE {:.3} rad/s", f.rmse);
     assert!(
-        f.no_evidence <= 0.25,
+        f.no_evidence <= 0.1,
         "no evidence {:.1} %",
         f.no_evidence * 100.0
     );
@@ -145,7 +148,7 @@ fn hover_slow_yaw() {
 fn pure_rotation() {
     let f = scene(Regime::Rotation, 3, 3.0);
     report("rotation", &f);
-    check_turning(&f, 0.9, 0.25, 0.1);
+    check_turning(&f, 0.97, 0.13, 0.08);
 }
 
 #[test]

@@ -1,8 +1,9 @@
 //! The calibrated readout on the synthetic development sequences: the fixed-point pipeline (the
-//! firmware's code) reaches correlation >= 0.88 with the ground-truth yaw rate and RMSE <= 25 %
-//! of its peak on each, with no scaling of the output (measured: 0.938 / 0.971 / 0.898 and
-//! 23.4 / 13.6 / 18.8 %; the noise texture of dev01 decodes about 20 % low, see the README's
-//! figures), and the f64 oracle agrees.
+//! firmware's code) reaches, with no scaling of the output, correlation >= 0.94 with the
+//! ground-truth yaw rate on each and RMSE <= 24 % of its peak on dev01 (the noise texture
+//! decodes about 20 % low, see the README's figures), <= 15 % on dev02, <= 13 % on dev03,
+//! <= 25 % on any other sequence (measured: 0.953 / 0.974 / 0.964 and 21.8 / 12.9 / 10.9 %),
+//! and the f64 oracle agrees.
 
 use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
@@ -61,8 +62,14 @@ fn calibrated_yaw_rate_on_every_synthetic_sequence() {
             "{name}: correlation {corr:.3}, RMSE {:.1} % of peak; fixed vs float {fixed_vs_float:.4}",
             err * 100.0
         );
-        assert!(corr >= 0.88, "{name}: correlation {corr:.3}");
-        assert!(err <= 0.25, "{name}: RMSE {:.1} % of peak", err * 100.0);
+        let max_err = match name.get(..5) {
+            Some("dev01") => 0.24,
+            Some("dev02") => 0.15,
+            Some("dev03") => 0.13,
+            _ => 0.25,
+        };
+        assert!(corr >= 0.94, "{name}: correlation {corr:.3}");
+        assert!(err <= max_err, "{name}: RMSE {:.1} % of peak", err * 100.0);
         assert!(
             fixed_vs_float >= 0.99,
             "{name}: fixed vs float {fixed_vs_float:.4}"

@@ -52,7 +52,7 @@ const SLOW_SCENE_MARGIN: Trace = Trace::from_bits(0x00CC_CCCD); // 0.1
 
 /// A unit's drive must be at least `2^DOMINANCE_LOG2` times its twin's (the unit at the same
 /// pixel facing the other way) to be decoded.
-const DOMINANCE_LOG2: u32 = 1;
+pub const DOMINANCE_LOG2: u32 = 1;
 
 /// Slow traces at or above this level are not decoded (they may have saturated).
 const SLOW_TRACE_LIMIT: Trace = Trace::const_from_int(8);
@@ -78,6 +78,18 @@ pub const fn default_tau_a_us(units: usize) -> u32 {
     } else {
         tau as u32
     }
+}
+
+/// Whether at least half of the layout's pixels with units have both (a unit and its twin
+/// facing the other way, as in the dense layouts; the paper's boxes place one unit per pixel).
+pub fn has_twins<L: Layout>(layout: &L) -> bool {
+    let (mut with_units, mut with_both) = (0usize, 0usize);
+    for c in 0..layout.cell_count() {
+        let mask = layout.units(c);
+        with_units += usize::from(mask != 0);
+        with_both += usize::from(mask & 3 == 3);
+    }
+    2 * with_both >= with_units
 }
 
 /// Settings of the calibrated readout.
@@ -138,15 +150,19 @@ impl Calibrated {
     /// A readout for the network of `kernel` over `layout`.
     pub fn new<L: Layout>(kernel: &Kernel, layout: &L, cal: Calibration) -> Self {
         let p = kernel.params();
+        let mut field = field_over(
+            layout,
+            (cal.focal_px, cal.cx, cal.cy),
+            cal.field,
+            [cal.tau_a_us, cal.tau_a_us.max(SLOW_TAU_A_US)],
+            cal.period_us,
+        );
+        if !has_twins(layout) {
+            field.choose_by_decode_rate();
+        }
         Self {
             cal,
-            field: field_over(
-                layout,
-                (cal.focal_px, cal.cx, cal.cy),
-                cal.field,
-                [cal.tau_a_us, cal.tau_a_us.max(SLOW_TAU_A_US)],
-                cal.period_us,
-            ),
+            field,
             log2_tau: [
                 log2_q16(u64::from(p.tau_fac_us), 0),
                 log2_q16(u64::from(TAU_SLOW_US), 0),

@@ -11,10 +11,10 @@
 //!   it): a fit of `r` against `Y` with separate slopes above and below the principal row has
 //!   the yaw rate, plus what is odd in `X`, as its intercept at `Y = 0`.
 //! - What is odd in `X` (forward translation of scenery that is not a ground plane: zero at the
-//!   focus of expansion, opposite signs either side) cancels in the mean of the two mirrored
-//!   column bands.
+//!   focus of expansion, opposite signs either side) cancels in the mean of a column band left
+//!   of `c_x` and one right of it: exactly for mirrored bands, about for others.
 //! - An object moving on its own moves only its part of the view, and a rotation moves all of
-//!   it: the rotation must hold in several column bands.
+//!   it: the rotation must hold in several column bands on each side.
 //!
 //! Assumed: the principal point is known and the focus of expansion is near it (the camera
 //! moves along its optical axis); mirrored columns see scenery at similar depths. Lateral
@@ -32,11 +32,27 @@
 //!   problem and its decodes spread widely around the true horizontal flow, so such regions
 //!   count little.
 //! - Per column band and side: the inverse-variance weighted least-squares intercept of the
-//!   region values against `Y` (slopes with a weak prior), then the mean of the two sides.
-//! - The output is the inverse-variance weighted median of the column bands' values when at
-//!   least `support` bands have one, else "no rotation evidence". It comes from the population
-//!   that decodes more bursts per second: the paper's units, or the slow units in a slow scene. A layout with no mirrored bands (such
-//!   as two boxes placed at random) uses each band's side alone, with no spread gate.
+//!   region values against `Y` (slopes with a weak prior).
+//! - Every left band's intercept is paired with every right band's (up to
+//!   [`COL_BANDS`]² pairs); the output is the inverse-variance weighted median of the pairs'
+//!   means when each side has intercepts in at least `support` bands, and either `support`
+//!   mirrored bands have both or more than half of the mirrored bands' sides have one; else
+//!   "no rotation evidence". Pairing across bands keeps one wrong band from spoiling its
+//!   mirror, and a side that sees no texture in some bands (sky, a blank wall) from silencing
+//!   the field.
+//! - When more than a quarter of that weight ([`SPLIT_SHARE`]) says the other direction, the
+//!   field does not know which way the camera turns: "no rotation evidence" (just after a
+//!   reversal; straight driving past scenery at different depths either side).
+//! - The output comes from the population whose decodes agree in sign within their regions
+//!   the more per second ([`RANDOM_AGREEMENT`]): the paper's units, or the slow units in a slow
+//!   scene (where the paper's units time an edge near the end of their window they alias, and
+//!   their decodes take either sign). The slow units' value is scaled by 5/4 of their decode
+//!   rate over the last [`SHORT_TAU_US`] relative to their histograms' (at most 1): their
+//!   100 ms histograms remember a turn that is slowing down longer than it lasts. (Only a drop
+//!   below 4/5 scales: the 20 ms rate's own scatter would otherwise bias a steady slow turn
+//!   low.)
+//! - A layout with no mirrored bands (such as two boxes placed at random) uses each band's side
+//!   alone, with no spread gate.
 //!
 //! # Leaky histograms without touching every bin
 //! Instead of decaying every bin each period, new samples get a weight that grows by
@@ -71,6 +87,19 @@ pub const SHORT_TAU_US: u32 = 20_000;
 /// A population whose recent decode rate is below `1 / STOPPED_RATIO` of its histograms'
 /// rate has stopped seeing motion.
 const STOPPED_RATIO: u64 = 8;
+
+/// Net sign agreement `(P - N)² / (P + N)` (in samples) that a region of decodes with random
+/// signs exceeds about one time in 20 (it is about half a sample times a χ² variable with one
+/// degree of freedom, whose 95th percentile is 3.84): only what a region shows beyond it
+/// counts as agreement.
+pub const RANDOM_AGREEMENT: u32 = 2;
+
+/// When more than `1 / SPLIT_SHARE` of the weight behind the field's value says the other
+/// direction, the field does not say which way the camera turns: no rotation evidence. (Just
+/// after the camera reverses, edges pass pixels they have just passed the other way and the
+/// units time their way back as well; in straight driving the two sides' translation leaves
+/// opposite signs where mirrored columns see different depths.)
+pub const SPLIT_SHARE: u32 = 4;
 
 /// Regions and bands are weighed by `WEIGHT_SCALE / variance` (variance in Q32 rad²/s²),
 /// at most [`MAX_WEIGHT`] (a standard deviation of 0.004 rad/s).
@@ -246,15 +275,18 @@ pub struct Field {
     tau_us: [u32; 2],
     /// Decodes per population since the last output.
     recent: [u32; 2],
-    /// Sum of each population's bins per region (kept with the bins, so that no output has to
-    /// add them all up).
-    mass: [[u64; REGIONS]; 2],
+    /// Sum of each population's bins per region and sign (kept with the bins, so that no
+    /// output has to add them all up).
+    mass: [[[u64; 2]; REGIONS]; 2],
     /// Decodes per population, leaky over [`SHORT_TAU_US`] (Q16 samples).
     short: [u32; 2],
     /// Per-period decay of `short` (Q1.31).
     short_keep_q31: u32,
     /// Column bands with units on both sides (regions that can pair).
     paired_bands: u8,
+    /// The population that answers is the one whose decodes agree more in sign (else the one
+    /// that decodes more): see [`Field::choose_by_decode_rate`].
+    by_agreement: bool,
 }
 
 impl Field {
@@ -281,11 +313,22 @@ impl Field {
             grow_half_q31: [grow(fast), grow(slow)],
             tau_us,
             recent: [0; 2],
-            mass: [[0; REGIONS]; 2],
+            mass: [[[0; 2]; REGIONS]; 2],
             short: [0; 2],
             short_keep_q31: keep(SHORT_TAU_US),
             paired_bands,
+            by_agreement: true,
         }
+    }
+
+    /// Chooses the population that answers by its decode rate instead of its decodes' sign
+    /// agreement: for layouts whose units have no twin facing the other way at their pixel
+    /// (the paper's boxes). A twin lets the stronger of the two units decode and the pattern's
+    /// aliases (an edge timed against the edge after next) mostly lose; without one, a unit
+    /// facing against the motion decodes them, and its population's decodes split in sign at
+    /// any speed.
+    pub fn choose_by_decode_rate(&mut self) {
+        self.by_agreement = false;
     }
 
     /// The geometry.
@@ -317,6 +360,7 @@ impl Field {
                 .mass
                 .get_mut(pop as usize)
                 .and_then(|m| m.get_mut(region))
+                .and_then(|m| m.get_mut(usize::from(positive)))
             {
                 *m += u64::from(*b - before);
             }
@@ -350,12 +394,14 @@ impl Field {
             }
             if shift > 0 {
                 for (region, m) in hist.iter_mut().zip(mass.iter_mut()) {
-                    let mut sum = 0u64;
-                    for b in region.iter_mut().flatten() {
-                        *b = b.checked_shr(shift).unwrap_or(0);
-                        sum += u64::from(*b);
+                    for (sign, m) in region.iter_mut().zip(m.iter_mut()) {
+                        let mut sum = 0u64;
+                        for b in sign.iter_mut() {
+                            *b = b.checked_shr(shift).unwrap_or(0);
+                            sum += u64::from(*b);
+                        }
+                        *m = sum;
                     }
-                    *m = sum;
                 }
             }
             *weight = w.clamp(1, u64::from(2 * UNIT_WEIGHT)) as u32;
@@ -365,7 +411,7 @@ impl Field {
     /// One population's statistics in a region, or `None` with fewer than `min_samples`.
     fn population_value(&self, pop: Population, region: usize) -> Option<RegionStats> {
         let [neg, pos] = self.hist.get(pop as usize)?.get(region)?;
-        let total = self.mass.get(pop as usize)?.get(region).copied()?;
+        let total: u64 = self.mass.get(pop as usize)?.get(region)?.iter().sum();
         let weight = u64::from(
             self.weight
                 .get(pop as usize)
@@ -424,10 +470,18 @@ impl Field {
         })
     }
 
-    /// The estimate from everything seen so far, from the population that decodes more bursts
-    /// per second: the paper's units where edges move fast, the slow units in a slow scene.
+    /// The estimate from everything seen so far, from the population whose decodes agree more
+    /// in sign per second (see the module documentation): the paper's units where edges move
+    /// fast, the slow units in a slow scene.
     pub fn estimate(&self) -> FieldEstimate {
-        let pop = if self.rate(Population::Fast) >= self.rate(Population::Slow) {
+        let by = |pop| {
+            if self.by_agreement {
+                self.consistent_rate(pop)
+            } else {
+                self.rate(pop)
+            }
+        };
+        let pop = if by(Population::Fast) >= by(Population::Slow) {
             Population::Fast
         } else {
             Population::Slow
@@ -436,75 +490,128 @@ impl Field {
         // still remember the motion for a few time constants: say nothing rather than repeat it.
         let short = self.short.get(pop as usize).copied().unwrap_or(0);
         let short_rate = u64::from(short) / u64::from(SHORT_TAU_US);
-        if short_rate.saturating_mul(STOPPED_RATIO) < self.rate(pop) {
+        let rate = self.rate(pop);
+        if short_rate.saturating_mul(STOPPED_RATIO) < rate {
             return FieldEstimate::NoEvidence;
         }
-        self.population_estimate(pop)
+        match (self.population_estimate(pop), pop) {
+            // The slow units' histograms remember 100 ms, more than it takes a turn to slow
+            // down through them: once their decodes thin out below 4/5 of the histograms'
+            // rate, the rate they show shrinks in proportion (the decode rate follows the image
+            // speed within SHORT_TAU_US; above 4/5 it may be the 20 ms rate's scatter).
+            (FieldEstimate::Rotation(v), Population::Slow) if 5 * short_rate < 4 * rate => {
+                // |v| < 2^31 and 5 short_rate < 4 rate, so the scaled value fits.
+                let scaled =
+                    (u64::from(v.unsigned_abs()) * 5 * short_rate / (4 * rate).max(1)) as i32;
+                FieldEstimate::Rotation(if v < 0 { -scaled } else { scaled })
+            }
+            (est, _) => est,
+        }
     }
 
     /// Decoded bursts per µs of a population, averaged over its histograms' time constant
     /// (Q16): the slow units may answer only where edges are mostly slow.
     fn rate(&self, pop: Population) -> u64 {
         let i = pop as usize;
-        let mass: u64 = self.mass.get(i).map_or(0, |m| m.iter().sum());
+        let mass: u64 = self.mass.get(i).map_or(0, |m| m.iter().flatten().sum());
         let w = u64::from(self.weight.get(i).copied().unwrap_or(UNIT_WEIGHT).max(1));
         let tau = u64::from(self.tau_us.get(i).copied().unwrap_or(1).max(1));
         ((mass << 16) / w) / tau
     }
 
+    /// Decodes per µs of a population that agree in sign within their region, averaged over
+    /// its histograms' time constant (Q16): per region `(P - N)² / (P + N)` for the masses `P`
+    /// and `N` of the two signs, i.e. its decodes times the square of their net agreement,
+    /// less what random signs give ([`RANDOM_AGREEMENT`]; a region of the paper's units holds
+    /// a few decodes over its 10 ms, and random signs alone would count).
+    /// Where edges cross the stride in about the paper's units' whole window (~54 ms), those
+    /// units still burst, but mostly on the edge after next (the pattern aliases: a decode of
+    /// either sign); the slow units time the same edges with the right sign. Counting decodes
+    /// alone would pick the paper's units there.
+    fn consistent_rate(&self, pop: Population) -> u64 {
+        let i = pop as usize;
+        let w = u64::from(self.weight.get(i).copied().unwrap_or(UNIT_WEIGHT).max(1));
+        // A sample weighs `w` now (mass units).
+        let random = u64::from(RANDOM_AGREEMENT) * w;
+        let mut agree = 0u64; // at most the population's mass, < 2^46
+        for &[neg, pos] in self.mass.get(i).map_or(&[][..], |m| &m[..]) {
+            let (d, t) = (neg.abs_diff(pos), neg + pos);
+            // d · (d / t), with d / t in Q16 (d <= t < 2^40); nothing for an empty region.
+            if let Some(share) = (d << 16).checked_div(t) {
+                agree += ((d * share) >> 16).saturating_sub(random);
+            }
+        }
+        let tau = u64::from(self.tau_us.get(i).copied().unwrap_or(1).max(1));
+        ((agree << 16) / w) / tau
+    }
+
     /// One population's estimate.
     fn population_estimate(&self, pop: Population) -> FieldEstimate {
+        if self.paired_bands > 0 {
+            return self.mirrored_estimate(pop);
+        }
         // (value, weight) per column band: the mean of its two sides' intercepts.
         let mut values = [(0i64, 0u64); COL_BANDS];
         let mut n = 0usize;
         for band in 0..COL_BANDS {
             let fit = |side: usize| self.column_intercept(pop, side, band);
-            let est = if self.paired_bands == 0 {
-                // No mirrored regions: whichever side has units.
-                match (fit(0), fit(1)) {
-                    (Some(a), None) | (None, Some(a)) => Some(a),
-                    (Some((a, va)), Some((b, vb))) => Some(((a + b) / 2, (va + vb) / 4)),
-                    (None, None) => None,
-                }
-            } else {
-                match (fit(0), fit(1)) {
-                    (Some((a, va)), Some((b, vb))) => Some(((a + b) / 2, (va + vb) / 4)),
-                    _ => None,
-                }
+            // No mirrored regions: whichever side has units.
+            let est = match (fit(0), fit(1)) {
+                (Some(a), None) | (None, Some(a)) => Some(a),
+                (Some((a, va)), Some((b, vb))) => Some(((a + b) / 2, (va + vb) / 4)),
+                (None, None) => None,
             };
             if let (Some((v, var)), Some(slot)) = (est, values.get_mut(n)) {
                 *slot = (v, (WEIGHT_SCALE / var.max(1)).max(1));
                 n += 1;
             }
         }
-        if self.paired_bands > 0 && (n as u8) < self.settings.support.min(self.paired_bands).max(1)
+        weighted_median(values.get(..n).unwrap_or(&[]))
+    }
+
+    /// The estimate of a layout with mirrored column bands: every band's intercept on the
+    /// left paired with every band's intercept on the right. The mean of a pair cancels what
+    /// is odd in `X` (forward translation), exactly for mirrored bands and about for others,
+    /// and the weighted median over all pairs lets neither one wrong band nor a side without
+    /// texture in some bands silence the field (the mean of the mirrored pair alone does
+    /// both). An answer needs values in at least `support` column bands on each side, and
+    /// either `support` mirrored bands with values on both sides or values in more than half
+    /// of the mirrored bands' sides: a rotation moves the whole view, an object that crosses
+    /// near the principal point a few bands either side of it.
+    fn mirrored_estimate(&self, pop: Population) -> FieldEstimate {
+        let mut sides = [[None; COL_BANDS]; 2];
+        let mut have = [0u8; 2];
+        for (side, (fits, n)) in sides.iter_mut().zip(have.iter_mut()).enumerate() {
+            for (band, fit) in fits.iter_mut().enumerate() {
+                *fit = self.column_intercept(pop, side, band);
+                *n += u8::from(fit.is_some());
+            }
+        }
+        let [left, right] = sides;
+        let mirrored = left
+            .iter()
+            .zip(right.iter())
+            .filter(|(a, b)| a.is_some() && b.is_some())
+            .count();
+        let need = self.settings.support.min(self.paired_bands).max(1);
+        let [n_left, n_right] = have;
+        if n_left < need
+            || n_right < need
+            || ((mirrored as u8) < need && n_left + n_right <= self.paired_bands)
         {
             return FieldEstimate::NoEvidence;
         }
-        let Some(v) = values.get(..n) else {
-            return FieldEstimate::NoEvidence;
-        };
-        let total: u64 = v.iter().map(|&(_, w)| w).fold(0u64, u64::saturating_add);
-        if total == 0 {
-            return FieldEstimate::NoEvidence;
-        }
-        // Weighted median: the smallest value whose weight, with that of all values below it,
-        // reaches half the total (no sort: at most COL_BANDS values, and no panic path).
-        let mut best: Option<i64> = None;
-        for &(x, _) in v.iter() {
-            let below: u64 = v
-                .iter()
-                .filter(|&&(y, _)| y <= x)
-                .map(|&(_, w)| w)
-                .fold(0u64, u64::saturating_add);
-            if below >= total - total / 2 && best.is_none_or(|b| x < b) {
-                best = Some(x);
+        let mut values = [(0i64, 0u64); COL_BANDS * COL_BANDS];
+        let mut n = 0usize;
+        for &(a, va) in left.iter().flatten() {
+            for &(b, vb) in right.iter().flatten() {
+                if let Some(slot) = values.get_mut(n) {
+                    *slot = ((a + b) / 2, (WEIGHT_SCALE / ((va + vb) / 4).max(1)).max(1));
+                    n += 1;
+                }
             }
         }
-        let m = best.unwrap_or(0);
-        // The fits extrapolate to Y = 0; nothing outside the histograms' range is measured.
-        let max = i64::from(exp2_q16(LOG2_HI));
-        FieldEstimate::Rotation(m.clamp(-max, max) as i32)
+        weighted_median(values.get(..n).unwrap_or(&[]))
     }
 
     /// The rate at the principal row (`Y = 0`) of one column band on one side, and its
@@ -564,5 +671,198 @@ impl Field {
         let omega_q12 = rhs.saturating_mul(1 << 12) / info;
         let variance = ((WEIGHT_SCALE << 12) / info.unsigned_abs()).max(1);
         Some((omega_q12.saturating_mul(16), variance))
+    }
+}
+
+/// The weighted median of `(value Q16 rad/s, weight)` pairs: the smallest value whose weight,
+/// with that of all values below it, reaches half the total (no sort: at most
+/// `COL_BANDS²` values, and no panic path); clamped to the histograms' range (the fits
+/// extrapolate to `Y = 0`, and nothing outside that range is measured). No evidence without
+/// values, or when both signs hold more than `1 / SPLIT_SHARE` of the weight.
+fn weighted_median(v: &[(i64, u64)]) -> FieldEstimate {
+    let signed = |positive: bool| -> u64 {
+        v.iter()
+            .filter(|&&(x, _)| if positive { x > 0 } else { x < 0 })
+            .map(|&(_, w)| w)
+            .fold(0u64, u64::saturating_add)
+    };
+    let total: u64 = v.iter().map(|&(_, w)| w).fold(0u64, u64::saturating_add);
+    if total == 0
+        || signed(true)
+            .min(signed(false))
+            .saturating_mul(u64::from(SPLIT_SHARE))
+            > total
+    {
+        return FieldEstimate::NoEvidence;
+    }
+    let mut best: Option<i64> = None;
+    for &(x, _) in v {
+        let below: u64 = v
+            .iter()
+            .filter(|&&(y, _)| y <= x)
+            .map(|&(_, w)| w)
+            .fold(0u64, u64::saturating_add);
+        if below >= total - total / 2 && best.is_none_or(|b| x < b) {
+            best = Some(x);
+        }
+    }
+    let m = best.unwrap_or(0);
+    let max = i64::from(exp2_q16(LOG2_HI));
+    FieldEstimate::Rotation(m.clamp(-max, max) as i32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::log2::log2_q16;
+
+    /// A DAVIS346-like field (346 x 260, f = 226 px, principal point at the centre), all four
+    /// column bands mirrored, `tau_A` = 10 ms, 1 ms periods.
+    fn field() -> Field {
+        let g = FieldGeometry::spanning(173 << 16, 130 << 16, 226 << 16, (0, 345), (0, 259));
+        Field::new(g, FieldSettings::DEFAULT, [10_000, 100_000], 1_000, 4)
+    }
+
+    /// A pixel in column band `band` on `side` (0 left, 1 right), row band `row` above (`up`)
+    /// or below the principal point.
+    fn pixel(side: usize, band: usize, up: bool, row: usize) -> (u16, u16) {
+        let dx = 43 * band as i32 + 21;
+        let dy = 43 * row as i32 + 21;
+        let x = if side == 0 { 173 - dx - 1 } else { 173 + dx };
+        let y = if up { 130 - dy - 1 } else { 130 + dy };
+        (x as u16, y as u16)
+    }
+
+    /// `log2 |r|` of a rate in rad/s (Q16.16), from its value in thousandths.
+    fn log2_rate(milli: u64) -> i32 {
+        log2_q16(milli, 0) - log2_q16(1_000, 0)
+    }
+
+    /// Feeds 30 ms of decodes of the paper's units: in every listed column band (side, band,
+    /// rate in mrad/s, signed), two per row band and period, all at the same rate.
+    fn feed(f: &mut Field, bands: &[(usize, usize, i64)]) {
+        for _ in 0..30 {
+            for &(side, band, rate) in bands {
+                for row in 0..ROW_BANDS {
+                    for up in [false, true] {
+                        let (x, y) = pixel(side, band, up, row);
+                        for _ in 0..2 {
+                            f.add(
+                                Population::Fast,
+                                x,
+                                y,
+                                log2_rate(rate.unsigned_abs()),
+                                rate > 0,
+                            );
+                        }
+                    }
+                }
+            }
+            f.age();
+        }
+    }
+
+    /// Every column band on both sides, at the rate `rate(side, band)` (mrad/s, signed).
+    fn all_bands(rate: impl Fn(usize, usize) -> i64) -> [(usize, usize, i64); 2 * COL_BANDS] {
+        core::array::from_fn(|i| (i % 2, i / 2, rate(i % 2, i / 2)))
+    }
+
+    fn rad_s(e: FieldEstimate) -> Option<f64> {
+        match e {
+            FieldEstimate::Rotation(v) => Some(f64::from(v) / 65536.0),
+            FieldEstimate::NoEvidence => None,
+        }
+    }
+
+    #[test]
+    fn a_side_without_texture_in_some_bands_still_answers() {
+        // Left bands 2, 3 and right bands 0, 1, 2 see texture: only band 2 is mirrored, but
+        // five of the eight band sides agree on 0.3 rad/s.
+        let mut f = field();
+        feed(
+            &mut f,
+            &[
+                (0, 2, 300),
+                (0, 3, 300),
+                (1, 0, 300),
+                (1, 1, 300),
+                (1, 2, 300),
+            ],
+        );
+        let v = rad_s(f.estimate()).expect("a rotation");
+        assert!((v - 0.3).abs() < 0.01, "{v}");
+    }
+
+    #[test]
+    fn one_wrong_band_does_not_spoil_its_mirror() {
+        // Band 1 on the left says -0.6 rad/s, everything else 0.3: the mean of band 1's
+        // mirrored pair would be -0.15; the median over all pairs is not moved by it.
+        let mut f = field();
+        let bands = all_bands(|side, band| if (side, band) == (0, 1) { -600 } else { 300 });
+        feed(&mut f, &bands);
+        let v = rad_s(f.estimate()).expect("a rotation");
+        assert!((v - 0.3).abs() < 0.05, "{v}");
+    }
+
+    #[test]
+    fn an_object_near_the_centre_is_no_rotation() {
+        // Left bands 0, 1 and right bands 0, 1 would be two mirrored bands; left 1, 2 and
+        // right 0, 1 (one mirrored band, half of the band sides) are not enough.
+        let mut f = field();
+        feed(
+            &mut f,
+            &[(0, 1, 400), (0, 2, 400), (1, 0, 400), (1, 1, 400)],
+        );
+        assert_eq!(f.estimate(), FieldEstimate::NoEvidence);
+        let mut f = field();
+        feed(
+            &mut f,
+            &[(0, 0, 400), (0, 1, 400), (1, 0, 400), (1, 1, 400)],
+        );
+        assert!(rad_s(f.estimate()).is_some());
+    }
+
+    #[test]
+    fn a_field_split_in_direction_is_no_evidence() {
+        // Every left band says +0.3 rad/s and every right band -0.3: translation that the
+        // mirrored sides do not cancel, or the moment after a reversal.
+        let mut f = field();
+        let bands = all_bands(|side, band| if side == 1 && band < 2 { -300 } else { 300 });
+        feed(&mut f, &bands);
+        assert_eq!(f.estimate(), FieldEstimate::NoEvidence);
+        // With one right band of the other sign, three quarters agree: an answer.
+        let mut f = field();
+        let bands = all_bands(|side, band| if (side, band) == (1, 0) { -300 } else { 300 });
+        feed(&mut f, &bands);
+        assert!(rad_s(f.estimate()).is_some_and(|v| v > 0.2));
+    }
+
+    #[test]
+    fn agreement_picks_the_population_and_random_signs_do_not_count() {
+        // The paper's units decode twice as often as the slow units, with random signs; the
+        // slow units agree on 0.1 rad/s: they answer, scaled by nothing (steady decodes).
+        let mut f = field();
+        for period in 0..300u32 {
+            for band in 0..COL_BANDS {
+                for side in 0..2 {
+                    for row in 0..ROW_BANDS {
+                        let (x, y) = pixel(side, band, period % 2 == 0, row);
+                        let sign =
+                            (period / 2 + band as u32 + side as u32 + row as u32).is_multiple_of(2);
+                        for _ in 0..2 {
+                            f.add(Population::Fast, x, y, log2_rate(900), sign);
+                        }
+                        f.add(Population::Slow, x, y, log2_rate(100), true);
+                    }
+                }
+            }
+            f.age();
+        }
+        assert!(f.rate(Population::Fast) > f.rate(Population::Slow));
+        let v = rad_s(f.estimate()).expect("a rotation");
+        assert!((v - 0.1).abs() < 0.01, "{v}");
+        // Choosing by decode rate (a layout without twin units) takes the paper's units.
+        f.choose_by_decode_rate();
+        assert!(rad_s(f.estimate()).is_none_or(|v| (v - 0.1).abs() > 0.05));
     }
 }
