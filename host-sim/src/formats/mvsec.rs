@@ -162,6 +162,8 @@ impl MvsecEvents {
         let file = open(path)?;
         let ds = checked_dataset(&file, path, EVENTS)?;
         let rows = rows(path, EVENTS, &ds.shape(), &[4])?;
+        // The element type must convert, also when there are no rows to read.
+        probe(&ds, path, EVENTS)?;
         Ok(Self {
             file,
             ds,
