@@ -509,8 +509,62 @@ fn scale_by_ratio(x: u64, a: u64, b: u64) -> u64 {
     // Both shifted so that b < 2^32: the ratio keeps 31 bits or more.
     let k = 32u32.saturating_sub(b.leading_zeros());
     let (a, b) = (a >> k, (b >> k).max(1));
-    let ratio = (a << 32) / b; // Q32, <= 1
+    // Q32, <= 1 (a quotient below 2^32 unless a == b).
+    let ratio = match div_narrow(a << 32, b as u32) {
+        Some(q) if a < b => u64::from(q),
+        _ => (a << 32) / b,
+    };
     ((u128::from(x) * u128::from(ratio)) >> 32) as u64
+}
+
+/// `n / d` when the quotient is below 2^32 (`n >> 32 < d`; `None` otherwise, and for `d = 0`).
+/// Exact. On a 32-bit target it takes two 32-bit divisions (one instruction each on the
+/// Cortex-M4, where a 64-bit division is a library routine of a few hundred instructions):
+/// long division in base 2^16 after normalising `d` (Hacker's Delight, `divlu`).
+#[inline]
+pub(crate) fn div_narrow(n: u64, d: u32) -> Option<u32> {
+    if n >> 32 >= u64::from(d) {
+        return None;
+    }
+    if cfg!(target_pointer_width = "64") {
+        n.checked_div(u64::from(d)).map(|q| q as u32)
+    } else {
+        Some(div_narrow_32(n, d))
+    }
+}
+
+/// [`div_narrow`] from 32-bit divisions (`n >> 32 < d` required; then `d > 0`).
+#[inline]
+fn div_narrow_32(n: u64, d: u32) -> u32 {
+    const B: u32 = 1 << 16;
+    // Normalised: v has its top bit set, so its top half vn1 is at least 2^15 and every
+    // quotient digit estimate below is at most 2 too high.
+    let s = d.leading_zeros();
+    let v = d << s;
+    let (vn1, vn0) = (v >> 16, v & 0xFFFF);
+    // n · 2^s < v · 2^32: still 64 bits.
+    let n = n << s;
+    let un32 = (n >> 32) as u32;
+    let (un1, un0) = ((n as u32) >> 16, (n as u32) & 0xFFFF);
+    let digit = |top: u32, next: u32| -> u32 {
+        let mut q = top.checked_div(vn1).unwrap_or(0);
+        let mut rhat = top - q * vn1;
+        while q >= B || q * vn0 > (rhat << 16) + next {
+            q -= 1;
+            rhat += vn1;
+            if rhat >= B {
+                break;
+            }
+        }
+        q
+    };
+    let q1 = digit(un32, un1);
+    // The remainder so far (below v, so mod 2^32 is exact).
+    let un21 = (un32 << 16)
+        .wrapping_add(un1)
+        .wrapping_sub(q1.wrapping_mul(v));
+    let q0 = digit(un21, un0);
+    (q1 << 16) | q0
 }
 
 /// A FAC trace as the spiking network keeps it: U7F24 bits (saturating just below 128, where a
@@ -762,37 +816,51 @@ impl Kernel {
         &self,
         u: &mut BurstUnit,
         until: FineTime,
-        on_spike: F,
+        mut on_spike: F,
     ) -> u32 {
+        let mut run = [0u32; 32];
+        let mut total = 0u32;
+        loop {
+            let n = self.burst_emit_into(u, until, &mut run);
+            for &t in run.get(..n).unwrap_or_default() {
+                on_spike(t);
+            }
+            total += n as u32;
+            if n < run.len() {
+                return total;
+            }
+        }
+    }
+
+    /// Writes the unit's pending spikes whose exact time is at or before `until` into `out`,
+    /// in order, each at its nearest whole µs, until `out` is full. Returns how many (fewer
+    /// than `out.len()`: all such spikes are out).
+    #[inline]
+    pub fn burst_emit_into(&self, u: &mut BurstUnit, until: FineTime, out: &mut [u32]) -> usize {
         if !u.pending() {
             return 0;
         }
         if !self.orbit {
-            return self.burst_emit_newton(u, until, on_spike);
+            return self.burst_emit_newton(u, until, out);
         }
-        let tau = u64::from(self.params.tau_trg_us);
-        let (next, n) = orbit::emit(u.ts, tau, until, u.next, on_spike);
-        if n > 0 {
-            u.next = if next == u64::MAX {
-                DONE | (u.next & 0xFFFF_FFFF)
+        let e = orbit::emit(u.ts, until, u.next, out);
+        if e.n > 0 {
+            if e.next == u64::MAX {
+                u.next = DONE | (u.next & 0xFFFF_FFFF);
             } else {
-                next
-            };
-            if u.pending() {
-                u.next_us = nearest_us(self.spike_time(u, u.next));
+                u.next = e.next;
+                u.next_us = match e.next_us {
+                    Some(t) => t,
+                    None => nearest_us(self.spike_time(u, e.next)),
+                };
             }
         }
-        n
+        e.n
     }
 
-    /// [`Kernel::burst_emit`] without burst tables: each next spike by Newton's method.
+    /// [`Kernel::burst_emit_into`] without burst tables: each next spike by Newton's method.
     #[inline(never)]
-    fn burst_emit_newton<F: FnMut(u32)>(
-        &self,
-        u: &mut BurstUnit,
-        until: FineTime,
-        mut on_spike: F,
-    ) -> u32 {
+    fn burst_emit_newton(&self, u: &mut BurstUnit, until: FineTime, out: &mut [u32]) -> usize {
         let delta = self.delta_q32();
         let mut n = 0;
         while u.pending() {
@@ -801,7 +869,10 @@ impl Kernel {
             if (until.wrapping_sub(t) as i64) < 0 {
                 break;
             }
-            on_spike(nearest_us(t));
+            let Some(slot) = out.get_mut(n) else {
+                break;
+            };
+            *slot = nearest_us(t);
             n += 1;
             u.next = r
                 .checked_sub(delta)
@@ -1010,6 +1081,84 @@ mod burst_tests {
                 (d - want).abs() <= 6e-9 * want + 2.0 / 4_294_967_296.0,
                 "x {x}: {d} vs {want}"
             );
+        }
+    }
+
+    #[test]
+    fn narrow_division_is_exact() {
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let mut cases = 0;
+        for i in 0..200_000u32 {
+            let d = match i % 4 {
+                0 => next() as u32 | 1,
+                1 => (next() as u32) >> (next() % 32),
+                2 => u32::MAX - (next() as u32 & 0xFF),
+                _ => 1 << (next() % 32),
+            };
+            if d == 0 {
+                continue;
+            }
+            // Quotients of every size below 2^32, and the largest numerators allowed.
+            let n = match i % 3 {
+                0 => next() % (u64::from(d) << 32),
+                1 => (u64::from(d) << 32) - 1 - (next() & 0xFFFF).min(u64::from(d) << 32 >> 1),
+                _ => next() >> (next() % 64),
+            };
+            let want = n / u64::from(d);
+            if want >> 32 == 0 {
+                assert_eq!(u64::from(div_narrow_32(n, d)), want, "{n} / {d}");
+                assert_eq!(div_narrow(n, d).map(u64::from), Some(want));
+                cases += 1;
+            } else {
+                assert_eq!(div_narrow(n, d), None);
+            }
+        }
+        assert!(cases > 150_000, "{cases}");
+        assert_eq!(div_narrow(5, 0), None);
+    }
+
+    #[test]
+    fn emission_in_small_runs_is_emission_in_one() {
+        // A burst written out 3 spikes at a time, with a clock that stops mid-burst, gives
+        // the spikes, the pending spike's time and the final state of one long run.
+        for k in [
+            Kernel::DEFAULT,
+            Kernel::new(TdeParams {
+                t_ref_us: 130,
+                ..TdeParams::DEFAULT
+            })
+            .unwrap(),
+        ] {
+            let mut whole = BurstUnit::IDLE;
+            k.burst_input(&mut whole, 1000, WideTrace(3 << 24));
+            let mut parts = whole;
+            let mut all = [0u32; 4096];
+            let mut got = [0u32; 4096];
+            let (mut n_all, mut n_got) = (0usize, 0usize);
+            for until in [40_000u32, 41_000, 2_000_000] {
+                n_all += k.burst_emit_into(&mut whole, fine(until), &mut all[n_all..]);
+                loop {
+                    let mut run = [0u32; 3];
+                    let n = k.burst_emit_into(&mut parts, fine(until), &mut run);
+                    got[n_got..n_got + n].copy_from_slice(&run[..n]);
+                    n_got += n;
+                    if n < run.len() {
+                        break;
+                    }
+                }
+                // (`next_us` means nothing once the burst is out.)
+                let state = |u: &BurstUnit| (u.ts, u.next, u.te_rel, u.next_us());
+                assert_eq!(state(&whole), state(&parts), "until {until}");
+            }
+            assert!(n_all > 30, "{n_all}");
+            assert!(!whole.pending());
+            assert_eq!(&all[..n_all], &got[..n_got]);
         }
     }
 

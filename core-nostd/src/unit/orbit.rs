@@ -32,6 +32,8 @@
 
 include!(concat!(env!("OUT_DIR"), "/orbit.rs"));
 
+use super::div_narrow;
+
 /// A tier of [`ROWS`]: rows from `first` on, `2^log2` columns each (`2^log2 + 1` entries: the
 /// last repeats the next row's first), starting at entry `offset`.
 pub(super) struct Tier {
@@ -126,7 +128,11 @@ pub(super) fn r_last(r_prev: u64, precise: bool) -> u64 {
     let x = r2_last(r_prev) << 24; // r^2 in Q10.54: sqrt is Q5.27
     let r = sqrt_approx(x);
     if precise && r > 0 {
-        (r + x / r) / 2
+        let q = match u32::try_from(r).ok().and_then(|r32| div_narrow(x, r32)) {
+            Some(q) => u64::from(q),
+            None => x / r,
+        };
+        (r + q) / 2
     } else {
         r
     }
@@ -153,42 +159,57 @@ pub(super) fn r_emitted(alpha: u64) -> u64 {
     }
 }
 
+/// What [`emit`] leaves behind: where the burst goes on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Emitted {
+    /// The next pending `alpha` (`u64::MAX`: the burst is over).
+    pub next: u64,
+    /// Spikes written.
+    pub n: usize,
+    /// The nearest whole µs of the pending spike, when `emit` stopped at it (it lies beyond
+    /// `until`); `None` when the burst is over or `out` is full.
+    pub next_us: Option<u32>,
+}
+
+/// `tau` (µs) in the units of `tau · r` with `r` in Q5.27 and times in Q32.32.
+const TAU32: u64 = (TAU_US as u64) << 5;
+
 /// Emits the spikes of a burst with anchor `ts` (`t*`, Q32.32 µs) whose exact time is at or
-/// before `until`, from the spike at `alpha` on, calling `on_spike` with each nearest whole µs.
-/// Returns the next pending `alpha` (`u64::MAX`: the burst is over) and the number emitted.
-/// One row of the table per spike; the column and its interpolation weight are the same for
-/// the whole burst.
+/// before `until`, from the spike at `alpha` on, writing each one's nearest whole µs into
+/// `out` (in order) until it is full. One row of the table per spike; the column and its
+/// interpolation weight are the same for the whole burst, and the table rows' `r` and the
+/// spike times are 32 x 32-bit products (cheap on a 32-bit MCU).
 #[inline]
-pub(super) fn emit<F: FnMut(u32)>(
-    ts: u64,
-    tau: u64,
-    until: u64,
-    alpha: u64,
-    mut on_spike: F,
-) -> (u64, u32) {
-    let tau32 = tau << 5;
-    // Emits the spike at r (Q5.27), or says it lies beyond `until`.
-    let mut spike = |r: u64| -> bool {
-        let t = ts.wrapping_sub(tau32 * r);
-        if (until.wrapping_sub(t) as i64) < 0 {
-            return false;
-        }
-        on_spike((t.wrapping_add(1 << 31) >> 32) as u32);
-        true
-    };
+pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted {
+    // A spike at r (Q5.27) lies at t = ts - TAU32·r; it is due when until - t >= 0, and
+    // reported at the whole µs nearest to t.
+    let due_from = until.wrapping_sub(ts);
+    let round = ts.wrapping_add(1 << 31);
     let frac = alpha & 0xFFFF_FFFF;
     let start = (alpha >> 32) as usize;
     let mut row = start;
-    let pending = |row: usize| (((row as u64) << 32) | frac, (start - row) as u32);
+    let mut n = 0usize;
+    // Where the burst stands after `n` spikes, at `row`.
+    let pending = |row: usize, n: usize, next_us: Option<u32>| Emitted {
+        next: ((row as u64) << 32) | frac,
+        n,
+        next_us,
+    };
     // r of the last spike emitted (the next one's predecessor), when known.
     let mut r_prev = None;
     if row >= ROWS_END {
         // Beyond the table: r falls by delta per row.
         let mut r = r_at(alpha);
         while row >= ROWS_END {
-            if !spike(r) {
-                return pending(row);
+            let p = r.wrapping_mul(TAU32);
+            if (due_from.wrapping_add(p) as i64) < 0 {
+                return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
             }
+            let Some(slot) = out.get_mut(n) else {
+                return pending(row, n, None);
+            };
+            *slot = (round.wrapping_sub(p) >> 32) as u32;
+            n += 1;
             r_prev = Some(r);
             r -= DELTA_Q27;
             row -= 1;
@@ -198,27 +219,46 @@ pub(super) fn emit<F: FnMut(u32)>(
         if row < t.first || row == 0 {
             continue;
         }
-        let wbits = 32 - t.log2;
-        let w = frac & ((1u64 << wbits) - 1);
+        // The interpolation weight in Q0.32: (b - a)·w >> wbits is the high word of
+        // (b - a)·(w << log2).
+        let w32 = (frac << t.log2) as u32;
         let stride = (1usize << t.log2) + 1;
-        let mut i = t.offset + (row - t.first) * stride + (frac >> wbits) as usize;
+        let col = (frac >> (32 - t.log2)) as usize;
+        let mut i = t.offset + (row - t.first) * stride + col;
         while row >= t.first {
-            let (a, b) = (at(&ROWS, i), at(&ROWS, i + 1));
-            let r = a + ((b.saturating_sub(a) * w) >> wbits);
-            if !spike(r) {
-                return pending(row);
+            let Some(&[a, b]) = ROWS.get(i..i + 2) else {
+                break;
+            };
+            let r = a + ((u64::from(b.saturating_sub(a)) * u64::from(w32)) >> 32) as u32;
+            let p = u64::from(r) * TAU32;
+            if (due_from.wrapping_add(p) as i64) < 0 {
+                return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
             }
-            r_prev = Some(r);
+            let Some(slot) = out.get_mut(n) else {
+                return pending(row, n, None);
+            };
+            *slot = (round.wrapping_sub(p) >> 32) as u32;
+            n += 1;
+            r_prev = Some(u64::from(r));
             i = i.wrapping_sub(stride);
             row -= 1;
         }
     }
     // Row 0: the last spike, from its predecessor.
     let r_prev = r_prev.unwrap_or_else(|| r_at(alpha + ONE));
-    if !spike(r_last(r_prev, false)) {
-        return pending(0);
+    let p = r_last(r_prev, false).wrapping_mul(TAU32);
+    if (due_from.wrapping_add(p) as i64) < 0 {
+        return pending(0, n, Some((round.wrapping_sub(p) >> 32) as u32));
     }
-    (u64::MAX, start as u32 + 1)
+    let Some(slot) = out.get_mut(n) else {
+        return pending(0, n, None);
+    };
+    *slot = (round.wrapping_sub(p) >> 32) as u32;
+    Emitted {
+        next: u64::MAX,
+        n: n + 1,
+        next_us: None,
+    }
 }
 
 /// `alpha` (Q32.32) at which `r(alpha) = y` (Q5.27, `y >= 1 + delta`, so `alpha >= 1`),
@@ -241,7 +281,13 @@ fn alpha_at(y: u64, guess: u64) -> u64 {
             alpha = start + (1 << wbits);
         } else {
             let span = b.saturating_sub(a).max(1);
-            return start + ((y.saturating_sub(a) << wbits) / span).min((1 << wbits) - 1);
+            let num = y.saturating_sub(a);
+            // Below one cell's span the quotient is below 2^wbits <= 2^32.
+            let q = match div_narrow(num << wbits, span as u32) {
+                Some(q) if num < span => u64::from(q),
+                _ => (num << wbits) / span,
+            };
+            return start + q.min((1 << wbits) - 1);
         }
     }
     alpha
@@ -327,12 +373,8 @@ mod tests {
         let alpha = (37u64 << 32) | 0x9ABC_DEF0;
         let ts = 1u64 << 60;
         let mut got = [0u32; 38];
-        let mut k = 0;
-        let (next, n) = emit(ts, 20_000, u64::MAX >> 1, alpha, |t| {
-            got[k] = t;
-            k += 1;
-        });
-        assert_eq!((next, n), (u64::MAX, 38));
+        let e = emit(ts, u64::MAX >> 1, alpha, &mut got);
+        assert_eq!((e.next, e.n), (u64::MAX, 38));
         for (k, t) in got.iter().enumerate() {
             let r = r_of(alpha - ((k as u64) << 32));
             let want = ts.wrapping_sub((20_000 * r) << 5);
