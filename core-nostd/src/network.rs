@@ -103,6 +103,13 @@ impl UnitPair {
         self.units.iter().any(BurstUnit::pending)
     }
 
+    /// Whether both units are at rest at `t_us` ([`Kernel::burst_at_rest`]): a pool may free
+    /// them.
+    #[inline]
+    fn at_rest(&self, kernel: &Kernel, t_us: u32) -> bool {
+        self.units.iter().all(|u| kernel.burst_at_rest(u, t_us))
+    }
+
     /// Whether a unit's next spike is reported at or before `t_us`.
     #[inline(always)]
     fn due(&self, t_us: u32) -> bool {
@@ -579,8 +586,6 @@ impl<'a, L: Layout> Network<'a, L> {
     pub const CELL_BYTES: usize = core::mem::size_of::<Cell>();
     /// Bytes of one [`UnitPair`] (two units).
     pub const UNIT_PAIR_BYTES: usize = core::mem::size_of::<UnitPair>();
-    /// Bytes of one slot of a unit pool: a [`UnitPair`] and its owner word.
-    pub const POOL_SLOT_BYTES: usize = core::mem::size_of::<UnitPair>() + 4;
 
     /// Where cell `c`'s units are in `units`: the cell itself, or its pool slot.
     #[inline]
@@ -889,7 +894,7 @@ impl<'a, L: Layout> Network<'a, L> {
         }
         if pair.pending() {
             self.mark_active(s);
-        } else if self.pool.is_some() && pair.units.iter().all(|u| kernel.burst_at_rest(u, t_in)) {
+        } else if pooled && pair.at_rest(kernel, t_in) {
             // An input too weak to leave anything behind.
             self.release(c, s);
         }
@@ -977,33 +982,27 @@ impl<'a, L: Layout> Network<'a, L> {
             for u in &mut pair.units {
                 kernel.burst_settle(u, t);
             }
-        } else if let (true, Some(s)) =
-            (pair.units.iter().all(|u| kernel.burst_at_rest(u, t)), slot)
-        {
+        } else if let (true, Some(s)) = (pair.at_rest(kernel, t), slot) {
             self.release(c, s);
         }
     }
 
     /// The pool's sweep for this period: slots whose units are all at rest at `t` are freed.
     fn sweep_pool(&mut self, t: u32) {
-        let Some(pool) = &mut self.pool else {
+        let Some(((start, count), cap)) = self
+            .pool
+            .as_mut()
+            .map(|pool| (pool.sweep_range(), pool.capacity()))
+        else {
             return;
         };
-        let (start, count) = pool.sweep_range();
-        let cap = pool.capacity();
         for i in 0..count {
             let s = (start + i) % cap;
-            let (Some(c), Some(pair)) = (pool.owner(s), self.units.get(s)) else {
+            let Some(c) = self.cell_of(s) else {
                 continue;
             };
-            if pair.units.iter().all(|u| self.kernel.burst_at_rest(u, t)) {
-                if let Some(cell) = self.cells.get_mut(c) {
-                    cell.set_slot(None);
-                }
-                pool.give_back(s);
-                if let Some(w) = self.active.get_mut(s / 32) {
-                    *w &= !(1 << (s % 32));
-                }
+            if self.units.get(s).is_some_and(|p| p.at_rest(self.kernel, t)) {
+                self.release(c, s);
             }
         }
     }
