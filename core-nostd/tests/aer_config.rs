@@ -192,3 +192,25 @@ fn payload_decoding_passes_configurations_by() {
     let st = payload.stats();
     assert_eq!((st.config_frames, st.event_frames, st.events), (1, 0, 0));
 }
+
+#[test]
+fn the_hex_form_reads_as_the_payload() {
+    let cfg = Settings {
+        readout: ReadoutChoice::Spikes,
+        unit_pool: Some(300),
+        ..davis346(LayoutChoice::Dense)
+    };
+    let hex: String = payload(&cfg).iter().map(|b| format!("{b:02X}")).collect();
+    assert_eq!(Settings::parse_hex(&hex), Ok(cfg));
+    assert_eq!(Settings::parse_hex(&hex.to_lowercase()), Ok(cfg));
+    assert_eq!(Settings::parse_hex(&hex[1..]), Err(ConfigError::Hex)); // odd count
+    assert_eq!(
+        Settings::parse_hex(&hex.replacen('0', "g", 1)),
+        Err(ConfigError::Hex)
+    );
+    assert_eq!(
+        Settings::parse_hex(&format!("{hex}00")),
+        Err(ConfigError::Hex)
+    ); // too long
+    assert_eq!(Settings::parse_hex(""), Err(ConfigError::Version(0)));
+}

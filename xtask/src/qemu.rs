@@ -476,11 +476,7 @@ impl Qemu {
 
 /// The readout the settings (hex of a configuration payload) name, if they parse.
 fn readout_of(hex: &str) -> Option<ReadoutChoice> {
-    let bytes = (0..hex.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(hex.get(i..i + 2)?, 16).ok())
-        .collect::<Option<Vec<u8>>>()?;
-    Settings::parse(&bytes).ok().map(|s| s.readout)
+    Settings::parse_hex(hex).ok().map(|s| s.readout)
 }
 
 /// Runs `cmd`, killing it after `limit`; returns its exit code (`None` when killed).

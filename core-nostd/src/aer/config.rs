@@ -55,6 +55,8 @@ pub enum ConfigError {
     Layout(u8),
     /// Values that cannot run (sizes, stride, focal length, window, period, `tau_A`, pool).
     Value(SettingsError),
+    /// Not the hex of a payload (an odd count or a non-hex digit, or longer than any payload).
+    Hex,
 }
 
 fn le16(b: &[u8], at: usize) -> u16 {
@@ -172,6 +174,24 @@ impl Settings {
         };
         settings.validate().map_err(ConfigError::Value)?;
         Ok(settings)
+    }
+
+    /// Reads and checks a payload written as hex, two digits per byte (how a command line or
+    /// `host-sim aer-stream` carries it).
+    ///
+    /// # Errors
+    /// [`ConfigError::Hex`] when `hex` is not such a payload, else as [`Settings::parse`].
+    pub fn parse_hex(hex: &str) -> Result<Self, ConfigError> {
+        let digits = hex.as_bytes();
+        let mut p = [0u8; CONFIG_BYTES];
+        if !digits.len().is_multiple_of(2) || digits.len() / 2 > p.len() {
+            return Err(ConfigError::Hex);
+        }
+        for (pair, byte) in digits.chunks_exact(2).zip(p.iter_mut()) {
+            let s = core::str::from_utf8(pair).map_err(|_| ConfigError::Hex)?;
+            *byte = u8::from_str_radix(s, 16).map_err(|_| ConfigError::Hex)?;
+        }
+        Self::parse(p.get(..digits.len() / 2).unwrap_or_default())
     }
 
     /// Writes the settings as a whole AER frame (kind 3) into `out`; returns its length.

@@ -29,7 +29,6 @@ pub mod time;
 use core::fmt::Write as _;
 use core::mem::MaybeUninit;
 
-use core_nostd::aer::config::CONFIG_BYTES;
 use core_nostd::settings::Settings;
 use core_nostd::unit::Kernel;
 use defmt_semihosting as _;
@@ -76,19 +75,6 @@ struct Config {
     icount_shift: u8,
 }
 
-/// Decodes `hex` (two digits per byte) into `out`; returns the byte count.
-fn from_hex(hex: &str, out: &mut [u8]) -> Option<usize> {
-    let digits = hex.as_bytes();
-    if !digits.len().is_multiple_of(2) || digits.len() / 2 > out.len() {
-        return None;
-    }
-    for (pair, byte) in digits.chunks_exact(2).zip(out.iter_mut()) {
-        let s = core::str::from_utf8(pair).ok()?;
-        *byte = u8::from_str_radix(s, 16).ok()?;
-    }
-    Some(digits.len() / 2)
-}
-
 impl Config {
     fn parse() -> Result<Self, &'static str> {
         let (mut spi, mut bytes, mut live, mut paced, mut link_bps, mut icount_shift) =
@@ -113,9 +99,7 @@ impl Config {
                 }
                 "--bytes" => num(a).map(|v| bytes = v).is_some(),
                 "--settings" => {
-                    let mut payload = [0u8; CONFIG_BYTES];
-                    settings = from_hex(a, &mut payload)
-                        .and_then(|n| Settings::parse(payload.get(..n)?).ok());
+                    settings = Settings::parse_hex(a).ok();
                     settings.is_some()
                 }
                 "--link-bps" => num(a).map(|v| link_bps = v).is_some(),
