@@ -90,13 +90,13 @@ impl Memory {
     }
 
     /// The settings' pipeline over fresh state carved from the regions (while `self` is
-    /// borrowed).
+    /// borrowed); `needs` is what [`Capacity::needs`] said of them.
     fn build<'m>(
         &'m mut self,
         kernel: &'m Kernel,
         settings: &Settings,
+        needs: StorageNeeds,
     ) -> Result<Built<'m>, Refused> {
-        let needs = self.capacity().needs(settings)?;
         let short = Refused::Memory(0);
         let mut cells_region = self.cells.carve();
         let cells = cells_region.take(needs.cells, Cell::DEFAULT).ok_or(short)?;
@@ -139,7 +139,7 @@ pub async fn run<K: YawSink, M: CostMeter>(
 ) -> Result<Exit, Refused> {
     let capacity = memory.capacity();
     let needs = capacity.needs(settings)?;
-    let mut pipeline = memory.build(kernel, settings)?;
+    let mut pipeline = memory.build(kernel, settings, needs)?;
     defmt::info!(
         "processing: {} cells, {} unit pairs, {} pool owners",
         needs.cells,
