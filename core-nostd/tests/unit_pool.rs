@@ -7,7 +7,8 @@ use core_nostd::event::Event;
 use core_nostd::flags;
 use core_nostd::layout::{Dense, Layout};
 use core_nostd::network::{
-    active_words, Cell, InputFilter, NetState, NetStats, Network, PoolUse, Spike, UnitPair,
+    active_words, Cell, InputFilter, NetSink, NetState, NetStats, Network, PoolUse, Spike, Trigger,
+    UnitPair,
 };
 use core_nostd::settings::{LayoutChoice, ReadoutChoice, Settings};
 use core_nostd::unit::Kernel;
@@ -21,13 +22,13 @@ fn grid_train(w: u16, h: u16) -> impl Strategy<Value = Vec<(u32, u16, u16, bool)
 
 /// Every spike of the network on `train` (ticking each ms, then flushed), in order of time,
 /// cell and orientation (a tick visits cells in memory order, a pool's in slot order), with
-/// the counters and the pool use; `pool`: `None` = one pair per cell, else a pool of that many
-/// pairs.
+/// the counters, the pool use and every trigger record; `pool`: `None` = one pair per cell,
+/// else a pool of that many pairs.
 fn run(
     layout: Dense,
     train: &[(u32, u16, u16, bool)],
     pool: Option<usize>,
-) -> (Vec<Spike>, NetStats, Option<PoolUse>) {
+) -> (Vec<Spike>, NetStats, Option<PoolUse>, Vec<Trigger>) {
     let k = Kernel::DEFAULT;
     let n = layout.cell_count();
     let pairs = pool.unwrap_or(n);
@@ -40,8 +41,7 @@ fn run(
         Some(_) => NetState::pooled(&mut cells, &mut units, &mut owners, &mut active),
     };
     let mut net = Network::new(&k, layout, state, InputFilter::All).unwrap();
-    let mut spikes = Vec::new();
-    let mut sink = |s: Spike| spikes.push(s);
+    let mut sink = Record::default();
     let (mut t, mut tick) = (0u32, 1_000u32);
     for &(gap, x, y, on) in train {
         t += gap;
@@ -57,10 +57,31 @@ fn run(
         tick += 1_000;
     }
     net.flush(tick, &mut sink);
+    let Record {
+        mut spikes,
+        triggers,
+    } = sink;
     spikes.sort_by_key(|s| (s.t_us, s.cell, s.dir.slot()));
     let stats = *net.stats();
     let pool_use = net.pool_use();
-    (spikes, stats, pool_use)
+    (spikes, stats, pool_use, triggers)
+}
+
+/// A sink that keeps every spike and every trigger record.
+#[derive(Default)]
+struct Record {
+    spikes: Vec<Spike>,
+    triggers: Vec<Trigger>,
+}
+
+impl NetSink for Record {
+    const SPIKES: bool = true;
+    fn trigger(&mut self, t: &Trigger) {
+        self.triggers.push(*t);
+    }
+    fn spike(&mut self, s: Spike) {
+        self.spikes.push(s);
+    }
 }
 
 proptest! {
@@ -69,8 +90,8 @@ proptest! {
     #[test]
     fn a_pool_with_room_gives_the_same_spikes_whatever_its_size(train in grid_train(10, 4)) {
         let layout = Dense::new(10, 4, 2).unwrap();
-        let (large, large_stats, _) = run(layout, &train, Some(1_000));
-        let (small, stats, pool) = run(layout, &train, Some(40));
+        let (large, large_stats, _, _) = run(layout, &train, Some(1_000));
+        let (small, stats, pool, _) = run(layout, &train, Some(40));
         prop_assert_eq!(&small, &large);
         prop_assert_eq!(stats, large_stats);
         prop_assert_eq!(stats.pool_full, 0);
@@ -79,7 +100,7 @@ proptest! {
         // Every slot is back once every unit is at rest.
         prop_assert_eq!(pool.used, 0);
         // Close to the dense network: the rest rule moves few spikes.
-        let (dense, _, _) = run(layout, &train, None);
+        let (dense, _, _, _) = run(layout, &train, None);
         let diff = (small.len() as f64 - dense.len() as f64).abs();
         prop_assert!(diff <= 0.02 * dense.len() as f64 + 3.0, "{} vs {}", small.len(), dense.len());
     }
@@ -87,11 +108,13 @@ proptest! {
     #[test]
     fn a_full_pool_loses_inputs_and_nothing_else(train in grid_train(10, 4)) {
         let layout = Dense::new(10, 4, 2).unwrap();
-        let (spikes, stats, pool) = run(layout, &train, Some(3));
+        let (spikes, stats, pool, triggers) = run(layout, &train, Some(3));
         let pool = pool.unwrap();
         prop_assert!(pool.peak <= 3);
         prop_assert_eq!(pool.used, 0);
-        let (dense, dense_stats, _) = run(layout, &train, Some(1_000));
+        let (dense, dense_stats, _, dense_triggers) = run(layout, &train, Some(1_000));
+        // The FAC traces and what each event delivers do not depend on the units.
+        prop_assert_eq!(triggers, dense_triggers);
         if stats.pool_full == 0 {
             prop_assert_eq!(spikes, dense);
         } else {
@@ -117,7 +140,7 @@ fn when_the_pool_is_full_the_loss_is_counted_flagged_and_the_slots_come_back() {
         train.extend(sweep(y, 10, if y == 0 { 1_000 } else { 10 }));
     }
     let layout = Dense::new(10, 4, 2).unwrap();
-    let (_, stats, pool) = run(layout, &train, Some(4));
+    let (_, stats, pool, _) = run(layout, &train, Some(4));
     assert!(stats.pool_full > 0, "{stats:?}");
     assert_eq!(pool.unwrap().peak, 4);
     assert_eq!(pool.unwrap().used, 0, "slots back after the units rest");
@@ -125,8 +148,8 @@ fn when_the_pool_is_full_the_loss_is_counted_flagged_and_the_slots_come_back() {
     // with room.
     let mut later = train.clone();
     later.extend(sweep(1, 5, 2_000_000));
-    let (pooled, _, _) = run(layout, &later, Some(4));
-    let (dense, _, _) = run(layout, &later, Some(1_000));
+    let (pooled, _, _, _) = run(layout, &later, Some(4));
+    let (dense, _, _, _) = run(layout, &later, Some(1_000));
     let after = |s: &[Spike]| {
         s.iter()
             .filter(|s| s.t_us >= 2_000_000)

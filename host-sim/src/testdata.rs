@@ -31,3 +31,26 @@ pub fn shared_data(sub: &str) -> Option<PathBuf> {
     );
     None
 }
+
+/// The synthetic sequences of the shared data (folders of `synthetic/` with `events.raw` and
+/// `gt.csv`), as `(name, folder)` sorted by name; `None` (skipped) as [`shared_data`]. Panics
+/// when the folder cannot be read or holds no sequence.
+pub fn synthetic_sequences() -> Option<Vec<(String, PathBuf)>> {
+    let dir = shared_data("synthetic")?;
+    let mut seqs: Vec<(String, PathBuf)> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", dir.display()))
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.join("events.raw").is_file() && p.join("gt.csv").is_file())
+        .map(|p| {
+            let name = p
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            (name, p)
+        })
+        .collect();
+    seqs.sort();
+    assert!(!seqs.is_empty(), "no sequences in {}", dir.display());
+    Some(seqs)
+}

@@ -9,26 +9,14 @@ use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
 use host_sim::formats;
 use host_sim::pipeline::{run_pipeline, Model, RunOptions};
-use host_sim::testdata::shared_data;
+use host_sim::testdata::synthetic_sequences;
 
 #[test]
 fn calibrated_yaw_rate_on_every_synthetic_sequence() {
-    let Some(dir) = shared_data("synthetic") else {
+    let Some(seqs) = synthetic_sequences() else {
         return;
     };
-    let mut seqs: Vec<_> = std::fs::read_dir(&dir)
-        .expect("read synthetic dir")
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| p.join("gt.csv").is_file())
-        .collect();
-    seqs.sort();
-    assert!(!seqs.is_empty(), "no sequences in {}", dir.display());
-    for seq in seqs {
-        let name = seq
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
+    for (name, seq) in seqs {
         let input = seq.join("events.raw");
         let rec = formats::read(&input, None).expect("read events");
         let out = run_pipeline(&RunOptions::default(), &rec).expect("run");

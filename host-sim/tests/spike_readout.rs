@@ -9,7 +9,7 @@ use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
 use host_sim::formats;
 use host_sim::pipeline::{run_pipeline, Model, ReadoutKind, RunOptions};
-use host_sim::testdata::shared_data;
+use host_sim::testdata::synthetic_sequences;
 
 /// RMSE (rad/s) of `(t_s, value, flags)` samples against `gt`, held between samples.
 fn rmse_against(samples: &[(f64, f64, u8)], gt: &[formats::GtSample]) -> f64 {
@@ -28,22 +28,10 @@ fn rmse_against(samples: &[(f64, f64, u8)], gt: &[formats::GtSample]) -> f64 {
 
 #[test]
 fn spike_readout_on_every_synthetic_sequence() {
-    let Some(dir) = shared_data("synthetic") else {
+    let Some(seqs) = synthetic_sequences() else {
         return;
     };
-    let mut seqs: Vec<_> = std::fs::read_dir(&dir)
-        .expect("read synthetic dir")
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| p.join("gt.csv").is_file())
-        .collect();
-    seqs.sort();
-    assert!(!seqs.is_empty(), "no sequences in {}", dir.display());
-    for seq in seqs {
-        let name = seq
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
+    for (name, seq) in seqs {
         let rec = formats::read(seq.join("events.raw"), None).expect("read events");
         let gt = formats::read_ground_truth(seq.join("gt.csv")).expect("gt");
         let spikes = RunOptions {

@@ -20,7 +20,7 @@ use core_nostd::readout::Readout;
 use core_nostd::unit::Kernel;
 use host_sim::eval::metrics::pearson;
 use host_sim::formats;
-use host_sim::testdata::shared_data;
+use host_sim::testdata::{shared_data, synthetic_sequences};
 
 /// Output period (µs) and the readout's time constant (µs): `host-sim run`'s defaults.
 const PERIOD_US: u32 = 1_000;
@@ -174,20 +174,11 @@ fn check(name: &str, path: &std::path::Path) {
 
 #[test]
 fn spike_counts_and_normalized_output_follow_the_oracle_on_the_synthetic_sequences() {
-    let Some(dir) = shared_data("synthetic") else {
+    let Some(seqs) = synthetic_sequences() else {
         return;
     };
-    let mut seqs: Vec<_> = std::fs::read_dir(&dir)
-        .expect("read synthetic dir")
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| p.join("events.raw").is_file())
-        .collect();
-    seqs.sort();
-    assert!(!seqs.is_empty(), "no sequences in {}", dir.display());
-    for seq in seqs {
-        let name = seq.file_name().map(|n| n.to_string_lossy().into_owned());
-        check(&name.unwrap_or_default(), &seq.join("events.raw"));
+    for (name, seq) in seqs {
+        check(&name, &seq.join("events.raw"));
     }
 }
 
