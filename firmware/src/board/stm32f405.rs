@@ -56,7 +56,7 @@ const RING_BYTES: usize = 4096;
 /// SPI1 RX request on DMA2 stream 0 (channel 3).
 const SPI1_RX_REQUEST: u8 = 3;
 
-/// SRAM for the spiking units (a unit pool of up to 620 pairs), leaving ~20 KiB for the stack.
+/// SRAM for the spiking units (a unit pool of up to 628 pairs), leaving ~20 KiB for the stack.
 const UNIT_BYTES: usize = 32 * 1024;
 
 #[link_section = ".ccmram"]

@@ -60,7 +60,7 @@ const RING_BYTES: usize = 4096;
 /// Yaw frames per UART DMA transfer, at most.
 const TX_FRAMES: usize = 16;
 
-/// SRAM2 and SRAM3 (160 KiB, D2) for the spiking units: a unit pool of up to ~3100 pairs.
+/// SRAM2 and SRAM3 (160 KiB, D2) for the spiking units: a unit pool of up to 3 143 pairs.
 const UNIT_BYTES: usize = 160 * 1024;
 
 #[link_section = ".axisram"]
