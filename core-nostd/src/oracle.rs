@@ -397,6 +397,18 @@ impl<L: crate::layout::Layout> OracleNetwork<L> {
     }
 }
 
+/// One output sample `(t_us, yaw rad/s, flags)` of the rad/s readouts at `t` (µs): the
+/// readout's value and flags, plus [`crate::flags::STALE`] more than 100 ms after the last
+/// event (`last_event`, µs).
+fn sample(t: f64, last_event: f64, (v, flags): (f64, u8)) -> (f64, f64, u8) {
+    let stale = if t - last_event > 100_000.0 {
+        crate::flags::STALE
+    } else {
+        0
+    };
+    (t, v, flags | stale)
+}
+
 /// The calibrated pipeline in f64 (see [`crate::readout::calibrated`] and
 /// [`crate::readout::field`] for the method): onset filter, fast and slow FAC traces,
 /// per-trigger decoding with exact logarithms, leaky histograms per region decayed exactly each
@@ -610,15 +622,8 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             for field in &mut self.fields {
                 field.age();
             }
-            let stale = if next - self.last_event > 100_000.0 {
-                crate::flags::STALE
-            } else {
-                0
-            };
-            match est {
-                Some(v) => out.push((next, v, stale)),
-                None => out.push((next, 0.0, stale | crate::flags::NO_EVIDENCE)),
-            }
+            let value = est.map_or((0.0, crate::flags::NO_EVIDENCE), |v| (v, 0));
+            out.push(sample(next, self.last_event, value));
             next += self.period;
         }
         self.next_out = Some(next);
@@ -907,15 +912,8 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
                 None
             };
             self.outputs += 1;
-            let stale = if next - self.last_event > 100_000.0 {
-                crate::flags::STALE
-            } else {
-                0
-            };
-            match est {
-                Some(v) => out.push((next, v, stale)),
-                None => out.push((next, 0.0, stale | crate::flags::NO_EVIDENCE)),
-            }
+            let value = est.map_or((0.0, crate::flags::NO_EVIDENCE), |v| (v, 0));
+            out.push(sample(next, self.last_event, value));
             next += self.period;
         }
         self.next_out = Some(next);
@@ -1100,8 +1098,10 @@ const RANDOM_AGREEMENT: f64 = crate::readout::field::RANDOM_AGREEMENT as f64;
 /// `Y = 0` of a weighted fit; the weighted median over the means of every left band's
 /// intercept with every right band's, if each side has values in at least `support` bands
 /// and either `support` mirrored bands have both or more than half of the mirrored bands'
-/// sides have one, and if neither sign holds more than a quarter of the weight; no answer
-/// when the decodes have all but stopped.
+/// sides have one, and if regions in at least
+/// [`ABOVE_SUPPORT`](crate::readout::field::ABOVE_SUPPORT) row bands above the principal row
+/// have values, and if neither sign holds more than a quarter of the weight; no answer when
+/// the decodes have all but stopped.
 pub struct OracleField {
     focal: f64,
     cx: f64,
@@ -1271,9 +1271,16 @@ impl OracleField {
                 right.into_iter().flatten().collect(),
             );
             let need = self.support.min(self.paired_bands).max(1);
+            // Values in ABOVE_SUPPORT row bands above the principal row (v = 0).
+            let above = (0..ROWS)
+                .filter(|&row| {
+                    (0..2 * COLS).any(|col| self.region_value(col * 2 * ROWS + row).is_some())
+                })
+                .count();
             if left.len() < need
                 || right.len() < need
                 || (mirrored < need && left.len() + right.len() <= self.paired_bands)
+                || (above as u32) < crate::readout::field::ABOVE_SUPPORT
             {
                 return None;
             }

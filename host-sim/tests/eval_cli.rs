@@ -175,3 +175,57 @@ fn eval_errors_are_one_line() {
     assert!(err.starts_with("error: "), "{err}");
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
 }
+
+#[test]
+fn eval_reads_the_flags() {
+    // Ground truth 0 then 1 rad/s; the estimate is 0.5 everywhere, flagged "no evidence" (2)
+    // over the first half. RMSE takes the values as they are; the flag figures count the
+    // flagged half, and the RMS output takes it as 0.
+    let dir = tempfile::tempdir().unwrap();
+    let (gt, yaw) = (dir.path().join("gt.csv"), dir.path().join("yaw.csv"));
+    let (mut g, mut y) = (
+        String::from("t_s,yaw_rate\n"),
+        String::from("t_s,yaw_rate_rad_s,flags\n"),
+    );
+    for i in 0..100 {
+        let t = f64::from(i) * 0.01;
+        g.push_str(&format!("{t},{}\n", if i < 50 { 0.0 } else { 1.0 }));
+        y.push_str(&format!("{t},0.5,{}\n", if i < 50 { 2 } else { 0 }));
+    }
+    std::fs::write(&gt, g).unwrap();
+    std::fs::write(&yaw, y).unwrap();
+    let json = run_ok(
+        host_sim()
+            .args(["eval", "--json", "--yaw"])
+            .arg(&yaw)
+            .arg("--gt")
+            .arg(&gt),
+    );
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let rmse = v["estimate"]["rmse_rad_s"].as_f64().unwrap();
+    assert!((rmse - 0.5).abs() < 1e-9, "{rmse}");
+    let f = &v["flags"];
+    let share = f["no_evidence_share"].as_f64().unwrap();
+    assert!((share - 0.5).abs() < 0.02, "{share}");
+    assert_eq!(f["no_evidence_while_turning"].as_f64().unwrap(), 0.0);
+    let rms = f["rms_answered_rad_s"].as_f64().unwrap();
+    assert!((rms - 0.5 * 0.5f64.sqrt()).abs() < 0.01, "{rms}");
+    // Without a flags column there are no flag figures.
+    let plain = dir.path().join("plain.csv");
+    let text = std::fs::read_to_string(&yaw).unwrap();
+    let body: String = text
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n")
+        .collect();
+    std::fs::write(&plain, format!("t_s,yaw_rate_rad_s\n{body}")).unwrap();
+    let json = run_ok(
+        host_sim()
+            .args(["eval", "--json", "--yaw"])
+            .arg(&plain)
+            .arg("--gt")
+            .arg(&gt),
+    );
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert!(v["flags"].is_null(), "{}", v["flags"]);
+}

@@ -40,6 +40,11 @@
 //!   "no rotation evidence". Pairing across bands keeps one wrong band from spoiling its
 //!   mirror, and a side that sees no texture in some bands (sky, a blank wall) from silencing
 //!   the field.
+//! - An answer also needs values in at least [`ABOVE_SUPPORT`] of the row bands above the
+//!   principal row: far scenery above the horizon moves with a rotation, while objects on the
+//!   ground (people, cars crossing the view of a camera that stands still) and the ground under
+//!   translation move the rows below it and the first above it. Assumed: the camera is upright
+//!   and sees textured scenery above the principal row.
 //! - When more than a quarter of that weight ([`SPLIT_SHARE`]) says the other direction, the
 //!   field does not know which way the camera turns: "no rotation evidence" (just after a
 //!   reversal; straight driving past scenery at different depths either side).
@@ -69,6 +74,15 @@ pub const COL_BANDS: usize = 4;
 pub const ROW_BANDS: usize = 3;
 /// Regions of the field: 2 sides x [`COL_BANDS`] x 2 sides x [`ROW_BANDS`].
 pub const REGIONS: usize = 4 * COL_BANDS * ROW_BANDS;
+/// Row bands above the principal row (of [`ROW_BANDS`]) in which some region must have a value
+/// before the field reports a rotation. Scenery above the horizon is far: it moves with a
+/// rotation and hardly with a translation, and objects that stand on the ground below the
+/// camera (people, cars) reach little above the principal row (a person 1.8 m tall at 2 m,
+/// seen from 1.7 m, at most 0.05 f above it; the first row band ends at `c_y` ± a sixth of the
+/// image height). So motion in the row bands of the lower half and the first above it only is
+/// an object's, or the ground's under translation (which the fit cannot tell from a yaw where
+/// the ground's edges suffer the aperture problem).
+pub const ABOVE_SUPPORT: u32 = 2;
 /// Histogram bins per region and sign.
 pub const BINS: usize = 64;
 
@@ -245,7 +259,9 @@ struct RegionStats {
 pub enum FieldEstimate {
     /// A rotation (rad/s, Q16, positive = turning right).
     Rotation(i32),
-    /// No rotation evidence spread over the field.
+    /// No rotation evidence spread over the field: too few column bands carry one, or its
+    /// weight is split in direction (see [`SPLIT_SHARE`]), or no region has a value, or the
+    /// decodes have all but stopped. The rate is unknown, not zero.
     NoEvidence,
 }
 
@@ -577,7 +593,9 @@ impl Field {
     /// both). An answer needs values in at least `support` column bands on each side, and
     /// either `support` mirrored bands with values on both sides or values in more than half
     /// of the mirrored bands' sides: a rotation moves the whole view, an object that crosses
-    /// near the principal point a few bands either side of it.
+    /// near the principal point a few bands either side of it. It also needs values in
+    /// [`ABOVE_SUPPORT`] row bands above the principal row, where objects on the ground
+    /// hardly reach.
     fn mirrored_estimate(&self, pop: Population) -> FieldEstimate {
         let mut sides = [[None; COL_BANDS]; 2];
         let mut have = [0u8; 2];
@@ -598,6 +616,7 @@ impl Field {
         if n_left < need
             || n_right < need
             || ((mirrored as u8) < need && n_left + n_right <= self.paired_bands)
+            || !self.above_supported(pop)
         {
             return FieldEstimate::NoEvidence;
         }
@@ -612,6 +631,22 @@ impl Field {
             }
         }
         weighted_median(values.get(..n).unwrap_or(&[]))
+    }
+
+    /// Whether at least [`ABOVE_SUPPORT`] row bands above the principal row have a value of
+    /// `pop` in some region.
+    fn above_supported(&self, pop: Population) -> bool {
+        let mut n = 0u32;
+        for row in 0..ROW_BANDS {
+            let any = (0..2).any(|side| {
+                (0..COL_BANDS).any(|band| {
+                    self.population_value(pop, region_index(side, band, 0, row))
+                        .is_some()
+                })
+            });
+            n += u32::from(any);
+        }
+        n >= ABOVE_SUPPORT
     }
 
     /// The rate at the principal row (`Y = 0`) of one column band on one side, and its
@@ -820,6 +855,37 @@ mod tests {
             &[(0, 0, 400), (0, 1, 400), (1, 0, 400), (1, 1, 400)],
         );
         assert!(rad_s(f.estimate()).is_some());
+    }
+
+    #[test]
+    fn motion_below_the_first_row_band_above_the_centre_is_no_rotation() {
+        // Every column band moves at 0.3 rad/s, but only in the lower half and the first row
+        // band above the principal row (objects on the ground, the ground under translation):
+        // no rotation. With the second row band above as well, a rotation.
+        for (rows_above, answers) in [(1, false), (2, true)] {
+            let mut f = field();
+            for _ in 0..30 {
+                for (side, band, _) in all_bands(|_, _| 300) {
+                    for row in 0..ROW_BANDS {
+                        for up in [false, true] {
+                            if up && row >= rows_above {
+                                continue;
+                            }
+                            let (x, y) = pixel(side, band, up, row);
+                            for _ in 0..2 {
+                                f.add(Population::Fast, x, y, log2_rate(300), true);
+                            }
+                        }
+                    }
+                }
+                f.age();
+            }
+            let v = rad_s(f.estimate());
+            assert_eq!(v.is_some(), answers, "{rows_above} row bands above: {v:?}");
+            if let Some(v) = v {
+                assert!((v - 0.3).abs() < 0.05, "{v}");
+            }
+        }
     }
 
     #[test]

@@ -154,6 +154,8 @@ fn paired_bands<L: Layout>(layout: &L, g: &FieldGeometry) -> u8 {
 
 /// When the field is read and what an output says: nothing during the warm-up (at least
 /// [`WARMUP_US`]), then the field's estimate, read every [`REFRESH_US`] and repeated between.
+/// A [`FieldEstimate::Rotation`] is output unflagged, a [`FieldEstimate::NoEvidence`] as 0
+/// flagged [`flags::NO_EVIDENCE`] (unknown, not zero rate).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OutputGate {
     /// Outputs still to suppress (see [`WARMUP_US`]).

@@ -13,7 +13,10 @@ use crate::eval::{
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Estimated yaw rate: CSV with a header, `t_s,yaw_rate_rad_s` (or `t_s,yaw_norm` for the
-    /// normalized readout); extra columns are ignored.
+    /// normalized readout), optionally `flags` (`host-sim run`'s status bits); other columns are
+    /// ignored. RMSE, correlation, ARRE and heading use the values as they are, flagged or not;
+    /// with flags, the report adds the share flagged "no evidence" (overall and while
+    /// |gt| >= 0.05 rad/s) and the RMS output with those samples as 0 (a static camera's figure).
     #[arg(long)]
     pub yaw: PathBuf,
     /// Ground truth: `gt.csv` (`t_s,...,wy,...`), any ground-truth file the readers know (ECD
@@ -60,9 +63,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| context.clone())?
         .labelled(context);
     let mut chunk = Vec::with_capacity(eval::CHUNK);
-    while est.next_chunk(&mut chunk)? {
-        for &(t, v) in &chunk {
-            ev.push(t, v)?;
+    let mut flags = Vec::with_capacity(eval::CHUNK);
+    let flagged = est.has_flags();
+    while est.next_chunk_flagged(&mut chunk, &mut flags)? {
+        for (&(t, v), &f) in chunk.iter().zip(&flags) {
+            if flagged {
+                ev.push_flagged(t, v, f)?;
+            } else {
+                ev.push(t, v)?;
+            }
         }
     }
     let report = ev.finish(est.missing())?;

@@ -11,7 +11,7 @@ use anyhow::{bail, ensure, Context, Result};
 use super::inputs::{Checked, SampleSource, SeriesSource, TimeCheck};
 use super::metrics::{value_at, Resample, T_EPS};
 use super::running::Running;
-use super::{EstimateKind, EvalOptions, PlotPoints, Report, Series};
+use super::{EstimateKind, EvalOptions, FlagFigures, PlotPoints, Report, Series, TURNING_RAD_S};
 
 /// Evaluates an estimate given sample by sample against the ground truth (and the gyro), in
 /// memory that depends on none of their lengths.
@@ -38,6 +38,10 @@ pub struct Evaluator<'a> {
     window: Option<(f64, f64)>,
     /// The latest estimate sample with a value.
     last: Option<(f64, f64)>,
+    /// Its flags.
+    last_flags: u8,
+    /// Whether flags were given ([`Evaluator::push_flagged`]), and their tallies over the grid.
+    flags: Option<FlagTally>,
     /// Samples pushed without a finite value.
     missing: usize,
     /// Largest |ground truth| on the grid.
@@ -47,6 +51,34 @@ pub struct Evaluator<'a> {
     /// A normalized estimate's grid, for the pass after the scale fit.
     spill: Option<Spill>,
     plot: Option<PlotPoints>,
+}
+
+/// Tallies of the flags over the grid (see [`FlagFigures`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct FlagTally {
+    points: usize,
+    no_evidence: usize,
+    turning: usize,
+    turning_no_evidence: usize,
+    /// Σ x² with "no evidence" samples as 0.
+    answered_sq: f64,
+}
+
+impl FlagTally {
+    fn figures(&self) -> FlagFigures {
+        let share = |a: usize, b: usize| {
+            if b == 0 {
+                f64::NAN
+            } else {
+                a as f64 / b as f64
+            }
+        };
+        FlagFigures {
+            no_evidence_share: share(self.no_evidence, self.points),
+            no_evidence_while_turning: share(self.turning_no_evidence, self.turning),
+            rms_answered_rad_s: (self.answered_sq / self.points.max(1) as f64).sqrt(),
+        }
+    }
 }
 
 /// The ARRE window of `opts`, checked.
@@ -160,6 +192,8 @@ impl<'a> Evaluator<'a> {
             start: None,
             window: None,
             last: None,
+            last_flags: 0,
+            flags: None,
             missing: 0,
             peak: 0.0,
             est: Running::new(step, None),
@@ -200,7 +234,23 @@ impl<'a> Evaluator<'a> {
         self.own(r)
     }
 
+    /// [`Evaluator::push`] with the sample's status bits (`core_nostd::flags`): the report then
+    /// also says how much of the grid is flagged "no evidence" ([`FlagFigures`]). Every sample
+    /// of an evaluation must come through this or every one through [`Evaluator::push`].
+    ///
+    /// # Errors
+    /// As [`Evaluator::push`].
+    pub fn push_flagged(&mut self, t: f64, v: f64, flags: u8) -> Result<()> {
+        self.flags.get_or_insert_with(FlagTally::default);
+        let r = self.push_sample_flagged(t, v, flags);
+        self.own(r)
+    }
+
     fn push_sample(&mut self, t: f64, v: f64) -> Result<()> {
+        self.push_sample_flagged(t, v, 0)
+    }
+
+    fn push_sample_flagged(&mut self, t: f64, v: f64, flags: u8) -> Result<()> {
         ensure!(t.is_finite(), "an estimate time is not finite ({t})");
         if let Some((last, _)) = self.last {
             ensure!(
@@ -232,6 +282,7 @@ impl<'a> Evaluator<'a> {
             self.gt.advance();
         }
         self.last = Some((t, v));
+        self.last_flags = flags;
         Ok(())
     }
 
@@ -239,6 +290,18 @@ impl<'a> Evaluator<'a> {
     fn grid_point(&mut self, t: f64, g: f64, x: f64) -> Result<()> {
         self.window = Some((self.window.map_or(t, |w| w.0), t));
         self.peak = self.peak.max(g.abs());
+        if let Some(f) = &mut self.flags {
+            // The point holds the latest sample at or before it: its flags.
+            let no_evidence = self.last_flags & core_nostd::flags::NO_EVIDENCE != 0;
+            let turning = g.abs() >= TURNING_RAD_S;
+            f.points += 1;
+            f.no_evidence += usize::from(no_evidence);
+            f.turning += usize::from(turning);
+            f.turning_no_evidence += usize::from(turning && no_evidence);
+            if !no_evidence {
+                f.answered_sq += x * x;
+            }
+        }
         self.est.push(t, g, x)?;
         if let Some(s) = &mut self.spill {
             s.write(t, g, x)?;
@@ -353,6 +416,7 @@ impl<'a> Evaluator<'a> {
             gt_heading_rad: self.est.gt_heading(),
             missing_estimates: missing.saturating_add(self.missing),
             estimate,
+            flags: self.flags.map(|f| f.figures()),
             gyro: self.gyro.as_ref().map(|g| g.fig.metrics(peak)),
             plot: self.plot.take(),
         })

@@ -117,6 +117,10 @@ struct CsvSeries<R> {
     it: usize,
     iv: usize,
     column: String,
+    /// Index of the optional `flags` column.
+    iflags: Option<usize>,
+    /// Flags of the latest sample returned (0 without a `flags` column).
+    flags: u8,
     last_t: Option<f64>,
     missing: usize,
     samples: u64,
@@ -132,6 +136,8 @@ impl<R: BufRead> CsvSeries<R> {
             it: 0,
             iv: 0,
             column: String::new(),
+            iflags: None,
+            flags: 0,
             last_t: None,
             missing: 0,
             samples: 0,
@@ -159,6 +165,7 @@ impl<R: BufRead> CsvSeries<R> {
         };
         csv.iv = iv;
         csv.column = name.to_string();
+        csv.iflags = cols.iter().position(|&c| c == "flags");
         Ok(csv)
     }
 
@@ -189,7 +196,8 @@ impl<R: BufRead> CsvSeries<R> {
     fn next_sample(&mut self) -> Result<Option<(f64, f64)>> {
         while self.next_line()? {
             let ln = self.ln;
-            let (mut ft, mut fv) = (None, None);
+            let (mut ft, mut fv, mut ff) = (None, None, None);
+            let last_col = self.it.max(self.iv).max(self.iflags.unwrap_or(0));
             for (i, f) in self.line.split(',').enumerate() {
                 if i == self.it {
                     ft = Some(f.trim());
@@ -197,7 +205,10 @@ impl<R: BufRead> CsvSeries<R> {
                 if i == self.iv {
                     fv = Some(f.trim());
                 }
-                if i >= self.it && i >= self.iv {
+                if Some(i) == self.iflags {
+                    ff = Some(f.trim());
+                }
+                if i >= last_col {
                     break;
                 }
             }
@@ -211,10 +222,19 @@ impl<R: BufRead> CsvSeries<R> {
                 ensure!(t >= last, "line {ln}: time goes backwards");
             }
             let raw = fv.with_context(too_few)?;
+            let flags = match (self.iflags, ff) {
+                (None, _) => 0,
+                (Some(_), None) => bail!("line {ln}: too few columns"),
+                (Some(_), Some("")) => 0,
+                (Some(_), Some(f)) => f
+                    .parse::<u8>()
+                    .with_context(|| format!("line {ln}: bad flags `{f}`"))?,
+            };
             match raw.parse::<f64>() {
                 Ok(v) if v.is_finite() => {
                     self.last_t = Some(t);
                     self.samples += 1;
+                    self.flags = flags;
                     return Ok(Some((t, v)));
                 }
                 Ok(_) => self.missing += 1,
@@ -233,6 +253,27 @@ impl<R: BufRead> CsvSeries<R> {
         while out.len() < CHUNK {
             match self.next_sample()? {
                 Some(s) => out.push(s),
+                None => break,
+            }
+        }
+        Ok(!out.is_empty())
+    }
+
+    /// Reads up to [`CHUNK`] samples into `out` and their flags into `flags` (both cleared
+    /// first); false when there are none left.
+    fn next_chunk_flagged(
+        &mut self,
+        out: &mut Vec<(f64, f64)>,
+        flags: &mut Vec<u8>,
+    ) -> Result<bool> {
+        out.clear();
+        flags.clear();
+        while out.len() < CHUNK {
+            match self.next_sample()? {
+                Some(s) => {
+                    out.push(s);
+                    flags.push(self.flags);
+                }
                 None => break,
             }
         }
@@ -309,6 +350,30 @@ impl<'a> EstimateReader<'a> {
     /// On a malformed row, a time going backwards, or when the file has no sample with a value.
     pub fn next_chunk(&mut self, out: &mut Vec<(f64, f64)>) -> Result<bool> {
         let r = self.csv.next_chunk(out);
+        match &self.name {
+            Some(name) => r.with_context(|| name.clone()),
+            None => r,
+        }
+    }
+
+    /// Whether the estimate has a `flags` column (`host-sim run`'s status bits,
+    /// `core_nostd::flags`).
+    #[must_use]
+    pub fn has_flags(&self) -> bool {
+        self.csv.iflags.is_some()
+    }
+
+    /// [`EstimateReader::next_chunk`], and each sample's flags into `flags` (0 without a
+    /// `flags` column or where it is empty).
+    ///
+    /// # Errors
+    /// As [`EstimateReader::next_chunk`], and on flags that are not a number from 0 to 255.
+    pub fn next_chunk_flagged(
+        &mut self,
+        out: &mut Vec<(f64, f64)>,
+        flags: &mut Vec<u8>,
+    ) -> Result<bool> {
+        let r = self.csv.next_chunk_flagged(out, flags);
         match &self.name {
             Some(name) => r.with_context(|| name.clone()),
             None => r,
@@ -411,6 +476,25 @@ pub struct Metrics {
     pub scale: Option<f64>,
 }
 
+/// What an estimate's flags say over the evaluation grid (each grid point takes the flags of
+/// the estimate sample whose value it holds). The figures of [`Metrics`] use the estimate's
+/// values as they are, flagged or not; these say how much of it a consumer that drops
+/// [`core_nostd::flags::NO_EVIDENCE`] samples would have.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FlagFigures {
+    /// Share of the grid flagged "no evidence".
+    pub no_evidence_share: f64,
+    /// Share flagged "no evidence" among the grid points where |ground truth| >=
+    /// [`TURNING_RAD_S`] (NaN when there are none).
+    pub no_evidence_while_turning: f64,
+    /// RMS of the estimate with the samples flagged "no evidence" counted as 0, rad/s: what a
+    /// static camera's output amounts to for such a consumer.
+    pub rms_answered_rad_s: f64,
+}
+
+/// |yaw rate| (rad/s) from which a grid point counts as turning in [`FlagFigures`].
+pub const TURNING_RAD_S: f64 = 0.05;
+
 /// The points of the evaluation figure: the grid decimated ([`Decimated`], the same times in
 /// every line), each rate with its integrated heading (rad, integrated over the whole grid).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -450,6 +534,9 @@ pub struct Report {
     pub missing_estimates: usize,
     /// Figures of the estimate.
     pub estimate: Metrics,
+    /// What the estimate's flags say, when it has a `flags` column
+    /// ([`Evaluator::push_flagged`]).
+    pub flags: Option<FlagFigures>,
     /// Figures of the gyro, when given.
     pub gyro: Option<Metrics>,
     /// The points of the figure, when [`EvalOptions::plot_points`] (not serialized).
@@ -572,6 +659,17 @@ impl Report {
         block("estimate", &self.estimate);
         if let Some(g) = &self.gyro {
             block("gyro", g);
+        }
+        if let Some(f) = &self.flags {
+            let _ = writeln!(
+                s,
+                "estimate flags (values above are as output, flagged or not):\n  {:<21}{:.1} % of the grid, {:.1} % while |gt| >= {TURNING_RAD_S} rad/s\n  {:<21}{:.4} rad/s (no-evidence samples as 0)",
+                "no evidence",
+                100.0 * f.no_evidence_share,
+                100.0 * f.no_evidence_while_turning,
+                "RMS output",
+                f.rms_answered_rad_s
+            );
         }
         s
     }
