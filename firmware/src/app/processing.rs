@@ -197,15 +197,15 @@ impl<K: YawSink, M: CostMeter> WithPipeline for FrameEvents<'_, '_, '_, K, M> {
     }
 }
 
-/// Adds a finished run's network counters (spikes, unit pool) to the stats.
+/// Adds a finished run's network counters (spikes of both networks, unit pool) to the stats.
 fn record_network(pipeline: &Built<'_>) {
-    let net = *pipeline.net_stats();
+    let (spikes, pool_full) = (pipeline.spike_count(), pipeline.pool_full());
     let pool = pipeline.pool_use();
     update_stats(|st| {
-        st.spikes += net.spikes_lr + net.spikes_rl;
+        st.spikes += spikes;
         st.pool_full = st
             .pool_full
-            .saturating_add(u32::try_from(net.pool_full).unwrap_or(u32::MAX));
+            .saturating_add(u32::try_from(pool_full).unwrap_or(u32::MAX));
         if let Some(p) = pool {
             st.pool_capacity = p.capacity as u32;
             st.pool_peak = st.pool_peak.max(p.peak as u32);
