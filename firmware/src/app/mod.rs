@@ -223,7 +223,8 @@ pub trait CostMeter {
     const UNIT: &'static str;
     /// Units of the raw counter's one step (QEMU: 40 >> shift instructions per SysTick step).
     fn units_per_tick() -> u32;
-    /// The raw counter now.
+    /// The counter now: it must count every step of an interval however long the work (not
+    /// modulo a timer period), up to its 32-bit wrap.
     fn now() -> u32;
     /// Ticks from `earlier` to `later` (handles the counter's wrap).
     fn ticks(earlier: u32, later: u32) -> u32;
