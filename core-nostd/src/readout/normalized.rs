@@ -38,18 +38,23 @@ const FRAC: u32 = 24;
 const RING: usize = 16;
 
 /// How far ahead of the clock (µs) the readout takes spikes, at most. The spikes that count
-/// are the same for any horizon (tested); the horizon trades visits to units in a burst (one
-/// per horizon: memory traffic, which dominates on a host with caches) against spikes an input
-/// takes back (each as costly as a spike: instructions, which dominate on a microcontroller).
-/// Measured on dev03: 1 ms is the faster on the host (4 ms: 5 % slower), 0.5 ms on the
-/// Cortex-M4 (737 instructions per event in the F405 window, against 816 at 1 ms and 913 at
-/// 4 ms).
+/// are the same for any horizon (tested); the horizon trades visits to units in a burst (a unit
+/// in a dense burst is visited about once per horizon, or once per output period if that is
+/// longer, each visit with its fixed cost) against spikes an input takes back (each about as
+/// costly as a spike). Measured on dev03: 1 ms is the faster on the host (4 ms: 5 % slower).
 #[cfg(not(target_os = "none"))]
 pub const AHEAD_MAX_US: u32 = 1_000;
 
 /// How far ahead of the clock (µs) the readout takes spikes, at most (see the host's value).
+/// Measured in QEMU by the whole run's virtual time (`mcu_time_us` at `-icount shift=0`: one
+/// instruction per ns; input and decoding, the same for every horizon, included) on dev03's
+/// 192 x 40 window with a unit pool of 4 000: 3.68 s at 0.5 ms, 3.13 s at 2 ms; on a 245 k-event
+/// slice of it 350 / 305 / 296 / 301 ms at 0.5 / 1 / 2 / 4 ms; the dense layout with a pool of
+/// 50 000: 33.6 s at 0.5 ms, 27.4 s at 2 ms. (0.5 ms had been chosen with a per-event meter
+/// that counted each event modulo one 1 ms SysTick period, undercounting the events whose
+/// output tick emits spikes for longer; the meter now counts whole periods.)
 #[cfg(target_os = "none")]
-pub const AHEAD_MAX_US: u32 = 500;
+pub const AHEAD_MAX_US: u32 = 2_000;
 
 /// Leaky integrator of spikes, in units of spikes (Q39.24).
 pub struct Normalized {
