@@ -92,6 +92,7 @@ pub async fn run<K: YawSink, M: CostMeter>(
     let mut last: Option<(u32, Instant)> = None;
     let start = Instant::now();
     let mut idle_tick: u32 = 0;
+    let meter_overhead_x1024 = M::overhead_x1024();
     loop {
         let msg = match clock {
             Clock::EventTimeOnly => FRAMES.receive().await,
@@ -161,7 +162,9 @@ pub async fn run<K: YawSink, M: CostMeter>(
         update_stats(|st| {
             st.frames_processed += 1;
             st.events = st.events.wrapping_add(events);
-            st.cost_units += cost * u64::from(M::units_per_tick());
+            let gross_x1024 = cost * u64::from(M::units_per_tick()) * 1024;
+            let overhead = u64::from(events) * meter_overhead_x1024;
+            st.cost_units += gross_x1024.saturating_sub(overhead) / 1024;
             st.decoder_errors = e3 as u32;
         });
         // Let the input stage run between frames.
