@@ -459,6 +459,42 @@ impl<'a> NetState<'a> {
     }
 }
 
+impl<'a> NetState<'a> {
+    /// The state split into two, each with the first half of every slice (the second half
+    /// of each is the other's): room for two networks over one layout (the spike readout's
+    /// paper's and slow units), each with half the units or half the pool.
+    pub fn halves(self) -> (Self, Self) {
+        fn split<T>(s: &mut [T]) -> (&mut [T], &mut [T]) {
+            let half = s.len() / 2;
+            s.split_at_mut_checked(half).unwrap_or((&mut [], &mut []))
+        }
+        let (c0, c1) = split(self.cells);
+        let (u0, u1) = split(self.units);
+        let (a0, a1) = split(self.active);
+        let (o0, o1) = match self.owners {
+            Some(o) => {
+                let (o0, o1) = split(o);
+                (Some(o0), Some(o1))
+            }
+            None => (None, None),
+        };
+        (
+            Self {
+                cells: c0,
+                units: u0,
+                owners: o0,
+                active: a0,
+            },
+            Self {
+                cells: c1,
+                units: u1,
+                owners: o1,
+                active: a1,
+            },
+        )
+    }
+}
+
 /// The pixel's own FAC traces just before an event, and whether the event came late.
 struct OwnTraces {
     /// FAC trace bits (see [`Cell::fac`]).

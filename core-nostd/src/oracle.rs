@@ -633,19 +633,26 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
     /// constant (on a layout without twin units, that decodes more); the slow units' scaled
     /// by their recent share of decodes.
     fn estimate(&self) -> Option<f64> {
-        let [fast, slow] = &self.fields;
-        let by = |f: &OracleField| {
-            if self.twins {
-                f.consistent_rate()
-            } else {
-                f.rate()
-            }
-        };
-        if by(fast) < by(slow) {
-            slow.estimate().map(|v| v * slow.recent_share())
+        two_population_estimate(&self.fields, self.twins)
+    }
+}
+
+/// The estimate of the population (0: the paper's units, 1: the slow units) whose decodes
+/// agree more in sign per unit of its time constant (`twins == false`, a layout without twin
+/// units: that decodes more); the slow units' scaled by their recent share of decodes.
+fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> Option<f64> {
+    let [fast, slow] = fields;
+    let by = |f: &OracleField| {
+        if twins {
+            f.consistent_rate()
         } else {
-            fast.estimate()
+            f.rate()
         }
+    };
+    if by(fast) < by(slow) {
+        slow.estimate().map(|v| v * slow.recent_share())
+    } else {
+        fast.estimate()
     }
 }
 
@@ -658,11 +665,35 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
 /// [`crate::readout::field`]. No pool: every unit is tracked. An independent implementation
 /// to check the fixed-point one.
 pub struct OracleSpikeYaw<L: crate::layout::Layout> {
-    p: OracleParams,
     layout: L,
     focal: f64,
     cx: f64,
     period: f64,
+    /// The paper's units (0) and the slow units (1, `tau_F` = [`crate::params::TAU_SLOW_US`]).
+    pops: [SpikePopulation; 2],
+    /// The field of each population (as [`OracleYaw`]'s).
+    fields: [OracleField; 2],
+    twins: bool,
+    /// A slow decode is dropped when the pixel's previous onset came up to this long (µs)
+    /// before it (`tau_F ln 10` of the paper's units).
+    busy_window: f64,
+    next_out: Option<f64>,
+    /// TRG events before this time (µs) are not decoded (the warm-up).
+    decode_from: f64,
+    outputs: u64,
+    phase: u32,
+    last: Option<f64>,
+    last_event: f64,
+    /// Spikes received (both populations).
+    pub spikes: u64,
+    /// Decodes added to the field.
+    pub samples: u64,
+}
+
+/// One population of the spike readout's oracle: its network (onset filter, exact FAC traces,
+/// units) and the decoder's view of its bursts.
+struct SpikePopulation {
+    p: OracleParams,
     /// Onset gap (µs).
     gap: f64,
     /// Per cell: FAC trace, its time, last polarity.
@@ -676,24 +707,28 @@ pub struct OracleSpikeYaw<L: crate::layout::Layout> {
     pending: std::vec::Vec<(f64, u32)>,
     /// Per unit: the decoder's view of its burst.
     tracks: std::vec::Vec<SpikeTrack>,
-    /// Per cell: the last decoded onset `(time, own trace after it)`, and each unit's decoded
-    /// drive for it and whether that decode waits for the twin.
-    onsets: std::vec::Vec<Option<(f64, f64)>>,
+    /// Per cell: the last decoded onset `(time, own trace after it, whether the onset before
+    /// it came within the busy window)`, and each unit's decoded drive for it and whether
+    /// that decode waits for the twin.
+    onsets: std::vec::Vec<Option<(f64, f64, bool)>>,
     decodes: std::vec::Vec<[(Option<f64>, bool); 2]>,
     /// Cells with a decode waiting, in order.
     waiting: std::collections::VecDeque<u32>,
-    field: OracleField,
-    next_out: Option<f64>,
-    /// TRG events before this time (µs) are not decoded (the warm-up).
+    /// The slow units: the longest crossing (s) the paper's units time at a pixel without a
+    /// recent onset; shorter crossings, and decodes at a pixel whose previous onset came
+    /// within the busy window, are theirs. `None` for the paper's units.
+    fast_reach_s: Option<f64>,
+}
+
+/// What a population's decodes go to (the parts [`OracleSpikeYaw`] shares between them).
+struct SpikeTarget<'t, L: crate::layout::Layout> {
+    layout: &'t L,
+    focal: f64,
+    cx: f64,
+    field: &'t mut OracleField,
     decode_from: f64,
-    outputs: u64,
-    phase: u32,
-    last: Option<f64>,
-    last_event: f64,
-    /// Spikes received.
-    pub spikes: u64,
-    /// Decodes added to the field.
-    pub samples: u64,
+    busy_window: f64,
+    samples: &'t mut u64,
 }
 
 /// The decoder's view of one unit (see [`crate::readout::spikes`]).
@@ -714,7 +749,8 @@ enum SpikeTrack {
 impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
     /// The pipeline with the spike readout's settings (those of the calibrated readout's field),
     /// principal point `(cx, cy)`, readout time constant `tau_a_us`, onset gap `gap_us` and
-    /// output period `period_us`.
+    /// output period `period_us`; the slow units are `p` with `tau_F` =
+    /// [`crate::params::TAU_SLOW_US`].
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         p: OracleParams,
@@ -726,23 +762,28 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         tau_a_us: f64,
     ) -> Self {
         let n = layout.cell_count();
-        let field = OracleField::new(&layout, focal, (cx, cy), tau_a_us, period_us);
+        let slow_tau = tau_a_us.max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
+        let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
+        let fields = [field(tau_a_us), field(slow_tau)];
+        let slow = OracleParams {
+            tau_fac: f64::from(crate::params::TAU_SLOW_US),
+            ..p
+        };
         Self {
-            p,
             focal,
             cx,
             period: period_us,
-            gap: gap_us,
-            fac: std::vec![(0.0, 0.0, false); n],
-            units: std::vec![(OracleUnit::default(), 0.0); 2 * n],
-            active: std::vec::Vec::new(),
-            listed: std::vec![false; 2 * n],
-            pending: std::vec::Vec::new(),
-            tracks: std::vec![SpikeTrack::Idle; 2 * n],
-            onsets: std::vec![None; n],
-            decodes: std::vec![[(None, false); 2]; n],
-            waiting: std::collections::VecDeque::new(),
-            field,
+            pops: [SpikePopulation::new(p, n, gap_us), {
+                let mut s = SpikePopulation::new(slow, n, gap_us);
+                // Where the paper's units' drive from a lone edge falls to the smallest that
+                // makes a burst.
+                let min = core::f64::consts::E * p.theta / (p.gain_per_us * p.tau_trg);
+                s.fast_reach_s = Some(p.tau_fac * (p.w_trg * p.w_fac / min).ln() * 1e-6);
+                s
+            }],
+            fields,
+            twins: crate::readout::calibrated::has_twins(&layout),
+            busy_window: p.tau_fac * core::f64::consts::LN_10,
             next_out: None,
             decode_from: f64::INFINITY,
             outputs: 0,
@@ -753,21 +794,6 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             samples: 0,
             layout,
         }
-    }
-
-    /// `c = g / theta` per µs.
-    fn c(&self) -> f64 {
-        self.p.gain_per_us / self.p.theta
-    }
-
-    /// The current at the start of a clean charge of `l` µs.
-    fn x_of(&self, l: f64) -> f64 {
-        (l / self.p.tau_trg).exp() / (self.c() * l)
-    }
-
-    /// Smallest drive that makes a burst from rest.
-    fn min_drive(&self) -> f64 {
-        core::f64::consts::E / (self.c() * self.p.tau_trg)
     }
 
     /// One event at time `t` (µs); pushes `(t_us, yaw rad/s, flags)` for every output before
@@ -795,6 +821,130 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         let Some(c) = self.layout.cell(x, y) else {
             return;
         };
+        for pop in &mut self.pops {
+            pop.event(&self.layout, c, t, x, y, on);
+        }
+    }
+
+    /// Emits every output up to `t` (µs) inclusive (end of the recording).
+    pub fn finish(&mut self, t: f64, out: &mut std::vec::Vec<(f64, f64, u8)>) {
+        self.emit_until(t, true, out);
+    }
+
+    fn emit_until(&mut self, t: f64, inclusive: bool, out: &mut std::vec::Vec<(f64, f64, u8)>) {
+        let Some(mut next) = self.next_out else {
+            return;
+        };
+        while next < t || (inclusive && next <= t) {
+            // Every unit that may spike, to the output time; then the spikes in time order,
+            // the paper's units' first; then the decodes whose twin has answered or can no
+            // longer answer.
+            for k in 0..2 {
+                let spikes = match self.pops.get_mut(k) {
+                    Some(pop) => pop.advance_all(next),
+                    None => continue,
+                };
+                self.spikes += spikes.len() as u64;
+                for &(ts, id) in &spikes {
+                    self.with_population(k, |pop, target| pop.spike(target, ts, id));
+                }
+            }
+            for k in 0..2 {
+                self.with_population(k, |pop, target| pop.settle(target, next));
+            }
+            let warmup = u64::from(
+                (crate::readout::shared::WARMUP_US
+                    + self.pops[0].p.tau_trg as u32
+                    + self.fields[0].tau_a as u32)
+                    .div_ceil(self.period as u32),
+            );
+            let refresh = (crate::readout::shared::REFRESH_US / (self.period as u32).max(1)).max(1);
+            if self.phase == 0 {
+                self.last = two_population_estimate(&self.fields, self.twins);
+            }
+            self.phase = (self.phase + 1) % refresh;
+            for field in &mut self.fields {
+                field.age();
+            }
+            let est = if self.outputs >= warmup {
+                self.last
+            } else {
+                None
+            };
+            self.outputs += 1;
+            let value = est.map_or((0.0, crate::flags::NO_EVIDENCE), |v| (v, 0));
+            out.push(sample(next, self.last_event, value));
+            next += self.period;
+        }
+        self.next_out = Some(next);
+    }
+
+    /// Runs `f` on population `k` with its target (its field).
+    fn with_population(
+        &mut self,
+        k: usize,
+        f: impl FnOnce(&mut SpikePopulation, &mut SpikeTarget<'_, L>),
+    ) {
+        let (Some(pop), Some(field)) = (self.pops.get_mut(k), self.fields.get_mut(k)) else {
+            return;
+        };
+        let mut target = SpikeTarget {
+            layout: &self.layout,
+            focal: self.focal,
+            cx: self.cx,
+            field,
+            decode_from: self.decode_from,
+            busy_window: self.busy_window,
+            samples: &mut self.samples,
+        };
+        f(pop, &mut target);
+    }
+}
+
+impl SpikePopulation {
+    fn new(p: OracleParams, n: usize, gap: f64) -> Self {
+        Self {
+            p,
+            gap,
+            fac: std::vec![(0.0, 0.0, false); n],
+            units: std::vec![(OracleUnit::default(), 0.0); 2 * n],
+            active: std::vec::Vec::new(),
+            listed: std::vec![false; 2 * n],
+            pending: std::vec::Vec::new(),
+            tracks: std::vec![SpikeTrack::Idle; 2 * n],
+            onsets: std::vec![None; n],
+            decodes: std::vec![[(None, false); 2]; n],
+            waiting: std::collections::VecDeque::new(),
+            fast_reach_s: None,
+        }
+    }
+
+    /// `c = g / theta` per µs.
+    fn c(&self) -> f64 {
+        self.p.gain_per_us / self.p.theta
+    }
+
+    /// The current at the start of a clean charge of `l` µs.
+    fn x_of(&self, l: f64) -> f64 {
+        (l / self.p.tau_trg).exp() / (self.c() * l)
+    }
+
+    /// Smallest drive that makes a burst from rest.
+    fn min_drive(&self) -> f64 {
+        core::f64::consts::E / (self.c() * self.p.tau_trg)
+    }
+
+    /// One event at cell `c`, pixel `(x, y)`: the onset filter, the units' inputs, the FAC
+    /// trace.
+    fn event<L: crate::layout::Layout>(
+        &mut self,
+        layout: &L,
+        c: usize,
+        t: f64,
+        x: u16,
+        y: u16,
+        on: bool,
+    ) {
         let p = self.p;
         let fac_at = |f: &(f64, f64, bool), t: f64| f.0 * (-(t - f.1).max(0.0) / p.tau_fac).exp();
         let Some(&own) = self.fac.get(c) else {
@@ -807,15 +957,15 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         if own.2 == on && own_now >= p.w_fac * (-self.gap / p.tau_fac).exp() {
             return;
         }
-        let mask = self.layout.units(c);
-        let s = i32::from(self.layout.stride());
+        let mask = layout.units(c);
+        let s = i32::from(layout.stride());
         for (slot, dx) in [(0usize, -s), (1usize, s)] {
             if mask & (1 << slot) == 0 {
                 continue;
             }
             let nb = u16::try_from(i32::from(x) + dx)
                 .ok()
-                .and_then(|nx| self.layout.cell(nx, y));
+                .and_then(|nx| layout.cell(nx, y));
             let i_fac = nb
                 .and_then(|n| self.fac.get(n))
                 .map_or(0.0, |f| fac_at(f, t));
@@ -849,79 +999,53 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         }
     }
 
-    /// Emits every output up to `t` (µs) inclusive (end of the recording).
-    pub fn finish(&mut self, t: f64, out: &mut std::vec::Vec<(f64, f64, u8)>) {
-        self.emit_until(t, true, out);
+    /// Moves every unit that may spike to `t`; returns the spikes since the last call, in
+    /// time order.
+    fn advance_all(&mut self, t: f64) -> std::vec::Vec<(f64, u32)> {
+        let active = core::mem::take(&mut self.active);
+        let mut still = std::vec::Vec::with_capacity(active.len());
+        for id in active {
+            self.advance_unit(id as usize, t);
+            let alive = self.units.get(id as usize).is_some_and(|(u, _)| {
+                u.refractory > 0.0 || self.p.next_crossing(u.u, u.i_trg, 1e9).is_some()
+            });
+            if alive {
+                still.push(id);
+            } else if let Some(l) = self.listed.get_mut(id as usize) {
+                *l = false;
+            }
+        }
+        self.active = still;
+        let mut spikes = core::mem::take(&mut self.pending);
+        spikes.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        spikes
     }
 
-    fn emit_until(&mut self, t: f64, inclusive: bool, out: &mut std::vec::Vec<(f64, f64, u8)>) {
-        let Some(mut next) = self.next_out else {
-            return;
-        };
-        while next < t || (inclusive && next <= t) {
-            // Every unit that may spike, to the output time; then the spikes in time order.
-            let active = core::mem::take(&mut self.active);
-            let mut still = std::vec::Vec::with_capacity(active.len());
-            for id in active {
-                self.advance_unit(id as usize, next);
-                let alive = self.units.get(id as usize).is_some_and(|(u, _)| {
-                    u.refractory > 0.0 || self.p.next_crossing(u.u, u.i_trg, 1e9).is_some()
-                });
-                if alive {
-                    still.push(id);
-                } else if let Some(l) = self.listed.get_mut(id as usize) {
-                    *l = false;
-                }
-            }
-            self.active = still;
-            let mut spikes = core::mem::take(&mut self.pending);
-            spikes.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            for &(ts, id) in &spikes {
-                self.spike(ts, id);
-            }
-            // Decodes whose twin has answered or can no longer answer.
-            for _ in 0..self.waiting.len() {
-                let Some(c) = self.waiting.pop_front() else {
-                    break;
-                };
-                let mut done = true;
-                for u in 0..2 {
-                    if !self.resolve(c as usize, u, Some(next)) {
-                        done = false;
-                    }
-                }
-                if !done {
-                    self.waiting.push_back(c);
-                }
-            }
-            let warmup = u64::from(
-                (crate::readout::shared::WARMUP_US
-                    + self.p.tau_trg as u32
-                    + self.field.tau_a as u32)
-                    .div_ceil(self.period as u32),
-            );
-            let refresh = (crate::readout::shared::REFRESH_US / (self.period as u32).max(1)).max(1);
-            if self.phase == 0 {
-                self.last = self.field.estimate();
-            }
-            self.phase = (self.phase + 1) % refresh;
-            self.field.age();
-            let est = if self.outputs >= warmup {
-                self.last
-            } else {
-                None
+    /// Decides, at `now`, what waits for a twin that has answered or can no longer answer.
+    fn settle<L: crate::layout::Layout>(&mut self, target: &mut SpikeTarget<'_, L>, now: f64) {
+        for _ in 0..self.waiting.len() {
+            let Some(c) = self.waiting.pop_front() else {
+                break;
             };
-            self.outputs += 1;
-            let value = est.map_or((0.0, crate::flags::NO_EVIDENCE), |v| (v, 0));
-            out.push(sample(next, self.last_event, value));
-            next += self.period;
+            let mut done = true;
+            for u in 0..2 {
+                if !self.resolve(target, c as usize, u, Some(now)) {
+                    done = false;
+                }
+            }
+            if !done {
+                self.waiting.push_back(c);
+            }
         }
-        self.next_out = Some(next);
     }
 
     /// One spike of unit `id` at `t` (the fixed readout's state machine, in f64).
-    fn spike(&mut self, t: f64, id: u32) {
-        self.spikes += 1;
+    fn spike<L: crate::layout::Layout>(
+        &mut self,
+        target: &mut SpikeTarget<'_, L>,
+        t: f64,
+        id: u32,
+    ) {
         let p = self.p;
         let (tau, t_ref) = (p.tau_trg, p.t_ref);
         let c = self.c();
@@ -981,37 +1105,45 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             *tr = next;
         }
         if let Some((t_trg, d)) = result {
-            self.decoded(id as usize / 2, id as usize % 2, t_trg, d);
+            self.decoded(target, id as usize / 2, id as usize % 2, t_trg, d);
         }
     }
 
     /// A decoded TRG event at `t_trg` with drive `d` of unit `u` of `cell`.
-    fn decoded(&mut self, cell: usize, u: usize, t_trg: f64, d: f64) {
+    fn decoded<L: crate::layout::Layout>(
+        &mut self,
+        target: &mut SpikeTarget<'_, L>,
+        cell: usize,
+        u: usize,
+        t_trg: f64,
+        d: f64,
+    ) {
         let p = self.p;
         let memory = 3.0 * p.tau_fac;
         let last = self.onsets.get(cell).copied().flatten();
-        let same = last.is_some_and(|(t0, _)| (t_trg - t0).abs() <= SAME_ONSET_F64);
-        if let (Some((t0, own)), false) = (last, same) {
+        let same = last.is_some_and(|(t0, _, _)| (t_trg - t0).abs() <= SAME_ONSET_F64);
+        if let (Some((t0, own, busy)), false) = (last, same) {
             if t_trg < t0 {
                 // An earlier onset decoded late: its memory joins the later one.
                 if let Some(o) = self.onsets.get_mut(cell) {
-                    *o = Some((t0, own + p.w_fac * (-(t0 - t_trg) / p.tau_fac).exp()));
+                    *o = Some((t0, own + p.w_fac * (-(t0 - t_trg) / p.tau_fac).exp(), busy));
                 }
                 return;
             }
         }
         if !same {
             for v in 0..2 {
-                self.resolve(cell, v, None);
+                self.resolve(target, cell, v, None);
             }
             let own = match last {
-                Some((t0, own)) if t_trg - t0 <= memory => {
+                Some((t0, own, _)) if t_trg - t0 <= memory => {
                     p.w_fac + own * (-(t_trg - t0) / p.tau_fac).exp()
                 }
                 _ => p.w_fac,
             };
+            let busy = last.is_some_and(|(t0, _, _)| t_trg - t0 <= target.busy_window);
             if let Some(o) = self.onsets.get_mut(cell) {
-                *o = Some((t_trg, own));
+                *o = Some((t_trg, own, busy));
             }
             if let Some(dd) = self.decodes.get_mut(cell) {
                 *dd = [(None, false); 2];
@@ -1028,7 +1160,13 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
 
     /// Decides the waiting decode of unit `u` of `cell` (as the fixed readout does); `false`
     /// when it still waits.
-    fn resolve(&mut self, cell: usize, u: usize, now: Option<f64>) -> bool {
+    fn resolve<L: crate::layout::Layout>(
+        &mut self,
+        target: &mut SpikeTarget<'_, L>,
+        cell: usize,
+        u: usize,
+        now: Option<f64>,
+    ) -> bool {
         let p = self.p;
         let Some(&[e0, e1]) = self.decodes.get(cell) else {
             return true;
@@ -1037,7 +1175,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         let (Some(d), true) = (mine, waits) else {
             return true;
         };
-        let Some((t_trg, own)) = self.onsets.get(cell).copied().flatten() else {
+        let Some((t_trg, own, busy)) = self.onsets.get(cell).copied().flatten() else {
             return true;
         };
         let c = self.c();
@@ -1066,7 +1204,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         if let Some(e) = self.decodes.get_mut(cell).and_then(|dd| dd.get_mut(u)) {
             e.1 = false;
         }
-        if !add || t_trg < self.decode_from {
+        if !add || t_trg < target.decode_from {
             return true;
         }
         let ratio = d / (p.w_trg * own);
@@ -1074,12 +1212,18 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             return true;
         }
         let dt_s = -p.tau_fac * ratio.ln() * 1e-6;
-        let (x, y) = self.layout.pixel(cell);
-        let dx = f64::from(x) - self.cx;
-        let g = self.focal + dx * dx / self.focal;
-        let w = f64::from(self.layout.stride()) / (dt_s * g);
-        self.field.add(x, y, if u == 1 { w } else { -w });
-        self.samples += 1;
+        if let Some(reach) = self.fast_reach_s {
+            if busy || dt_s <= reach {
+                // The paper's units time this edge.
+                return true;
+            }
+        }
+        let (x, y) = target.layout.pixel(cell);
+        let dx = f64::from(x) - target.cx;
+        let g = target.focal + dx * dx / target.focal;
+        let w = f64::from(target.layout.stride()) / (dt_s * g);
+        target.field.add(x, y, if u == 1 { w } else { -w });
+        *target.samples += 1;
         true
     }
 }

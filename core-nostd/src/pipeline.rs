@@ -13,16 +13,18 @@
 use crate::event::Event;
 use crate::flags;
 use crate::layout::Layout;
-use crate::network::Network;
-use crate::readout::{Readout, YawSample};
+use crate::network::{Network, PoolUse};
+use crate::readout::{Readout, SlowSide, YawSample};
 use crate::time::EventTime;
 
 /// Samples are flagged stale after this long without an event (µs).
 pub const STALE_AFTER_US: u32 = 100_000;
 
-/// Network plus readout plus output clock.
+/// Network plus readout plus output clock (plus, for readouts with [`Readout::SLOW_UNITS`], the
+/// network of slow units: the same events, in the same order, after the main network's).
 pub struct Pipeline<'a, L: Layout, R: Readout> {
     net: Network<'a, L>,
+    slow: Option<Network<'a, L>>,
     readout: R,
     period_us: u32,
     /// Next output time, once the first event has set the grid.
@@ -37,8 +39,20 @@ pub struct Pipeline<'a, L: Layout, R: Readout> {
 impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     /// A pipeline producing one sample every `period_us` µs (at least 1).
     pub fn new(net: Network<'a, L>, readout: R, period_us: u32) -> Self {
+        Self::with_slow_units(net, None, readout, period_us)
+    }
+
+    /// The same, with the network of slow units `slow` (for a readout with
+    /// [`Readout::SLOW_UNITS`]; others ignore it).
+    pub fn with_slow_units(
+        net: Network<'a, L>,
+        slow: Option<Network<'a, L>>,
+        readout: R,
+        period_us: u32,
+    ) -> Self {
         Self {
             net,
+            slow: if R::SLOW_UNITS { slow } else { None },
             readout,
             period_us: period_us.max(1),
             next_out: None,
@@ -51,6 +65,36 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     /// The network.
     pub fn network(&self) -> &Network<'a, L> {
         &self.net
+    }
+
+    /// The network of slow units, if the readout reads one.
+    pub fn slow_network(&self) -> Option<&Network<'a, L>> {
+        self.slow.as_ref()
+    }
+
+    /// How full the unit pool is; with the slow units' network, whichever of the two pools
+    /// (each of the same size) had the higher peak. `None`: no pool.
+    pub fn pool_use(&self) -> Option<PoolUse> {
+        let main = self.net.pool_use();
+        let slow = self.slow.as_ref().and_then(Network::pool_use);
+        match (main, slow) {
+            (Some(a), Some(b)) if b.peak > a.peak => Some(b),
+            (None, b) => b,
+            (a, _) => a,
+        }
+    }
+
+    /// Spikes emitted (and not taken back) by both networks.
+    pub fn spike_count(&self) -> u64 {
+        let count = |n: &Network<'a, L>| n.stats().spikes_lr.saturating_add(n.stats().spikes_rl);
+        let slow = self.slow.as_ref().map_or(0, count);
+        count(&self.net).saturating_add(slow)
+    }
+
+    /// Unit inputs lost to a full unit pool, in both networks.
+    pub fn pool_full(&self) -> u64 {
+        let slow = self.slow.as_ref().map_or(0, |n| n.stats().pool_full);
+        self.net.stats().pool_full.saturating_add(slow)
     }
 
     /// The readout.
@@ -67,6 +111,9 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         }
         self.last_event = t;
         self.net.event(ev, &mut self.readout);
+        if let (true, Some(slow)) = (R::SLOW_UNITS, self.slow.as_mut()) {
+            slow.event(ev, &mut SlowSide(&mut self.readout));
+        }
     }
 
     /// Moves the clock to `now_us` without an event, emitting every sample due up to it.
@@ -80,6 +127,9 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     pub fn finish<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
         self.poll(now_us, out);
         self.net.flush(now_us, &mut self.readout);
+        if let (true, Some(slow)) = (R::SLOW_UNITS, self.slow.as_mut()) {
+            slow.flush(now_us, &mut SlowSide(&mut self.readout));
+        }
     }
 
     /// Emits samples at grid times `T < t` (or `T <= t` when `inclusive`).
@@ -89,11 +139,14 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         };
         while t.is_after(next) || (inclusive && t == next) {
             self.net.tick(next.as_us(), &mut self.readout);
+            if let (true, Some(slow)) = (R::SLOW_UNITS, self.slow.as_mut()) {
+                slow.tick(next.as_us(), &mut SlowSide(&mut self.readout));
+            }
             let (yaw_rate, mut f) = self.readout.output(next.as_us());
             if next.elapsed_since(self.last_event) > STALE_AFTER_US {
                 f |= flags::STALE;
             }
-            let pool_full = self.net.stats().pool_full;
+            let pool_full = self.pool_full();
             if pool_full != self.pool_full_seen {
                 // Unit inputs were lost to a full unit pool since the last sample.
                 f |= flags::OVERFLOW;

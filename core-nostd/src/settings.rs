@@ -24,6 +24,9 @@ use crate::readout::spikes::{SpikeCell, Spikes};
 use crate::readout::{Readout, YawSample};
 use crate::unit::Kernel;
 
+/// The spike readout's slow units (computed at compile time, tables in flash).
+static SLOW_UNITS: Kernel = Kernel::SLOW;
+
 /// Largest sensor side (px): the 11-bit addresses of EVT 3.0 and of the AER stream.
 pub const MAX_SENSOR_SIDE: u16 = 2048;
 
@@ -95,7 +98,8 @@ pub struct Settings {
     pub tau_a_us: Option<u32>,
     /// Spiking readouts: `Some(n)`: unit state in a pool of `n` unit pairs
     /// (1..=[`MAX_UNIT_POOL`]; see [`crate::network::pool`]); `None`: one pair per cell. The
-    /// calibrated readout runs no units and ignores it.
+    /// spike readout runs two networks (the paper's units and the slow ones), each with a pool
+    /// of `n`. The calibrated readout runs no units and ignores it.
     pub unit_pool: Option<u32>,
 }
 
@@ -251,12 +255,14 @@ impl Settings {
                 active_words: active_words(unit_pairs),
                 spike_cells: 0,
             },
+            // Two networks over the layout (the paper's units and the slow ones), each with the
+            // pool's size; `build` splits every slice in two (`NetState::halves`).
             ReadoutChoice::Spikes => StorageNeeds {
-                cells,
-                unit_pairs,
-                pool_owners,
-                active_words: active_words(unit_pairs),
-                spike_cells: Spikes::cells_for(&layout),
+                cells: 2 * cells,
+                unit_pairs: 2 * unit_pairs,
+                pool_owners: 2 * pool_owners,
+                active_words: 2 * active_words(unit_pairs),
+                spike_cells: 2 * Spikes::cells_for(&layout),
             },
         })
     }
@@ -319,18 +325,26 @@ impl Settings {
                 )?)
             }
             ReadoutChoice::Spikes => {
-                let needed = Spikes::cells_for(&layout);
-                if spike_cells.len() < needed {
-                    return Err(SettingsError::SpikeCells {
-                        needed,
-                        given: spike_cells.len(),
-                    });
+                let per_population = Spikes::cells_for(&layout);
+                let given = spike_cells.len();
+                let short = SettingsError::SpikeCells {
+                    needed: per_population.saturating_mul(2),
+                    given,
+                };
+                let (fast_cells, slow_cells) = spike_cells
+                    .split_at_mut_checked(per_population)
+                    .ok_or(short)?;
+                if slow_cells.len() < per_population {
+                    return Err(short);
                 }
-                let readout = Spikes::new(kernel, layout.clone(), cal, spike_cells);
-                Built::Spikes(OnLayout::new(
+                let (state, slow_state) = state.halves();
+                let readout = Spikes::new(kernel, layout.clone(), cal, fast_cells)
+                    .with_slow_units(&SLOW_UNITS, slow_cells);
+                Built::Spikes(OnLayout::with_slow_units(
                     kernel,
                     layout,
                     state,
+                    Some((&SLOW_UNITS, slow_state)),
                     onsets,
                     readout,
                     self.period_us,
@@ -474,14 +488,45 @@ impl<'a, R: Readout> OnLayout<'a, R> {
         readout: R,
         period_us: u32,
     ) -> Result<Self, SettingsError> {
+        Self::with_slow_units(kernel, layout, state, None, filter, readout, period_us)
+    }
+
+    /// The same, with a network of slow units of kernel `slow.0` in `slow.1` (same layout and
+    /// input filter).
+    #[inline(never)]
+    fn with_slow_units(
+        kernel: &'a Kernel,
+        layout: SensorLayout,
+        state: NetState<'a>,
+        slow: Option<(&'a Kernel, NetState<'a>)>,
+        filter: InputFilter,
+        readout: R,
+        period_us: u32,
+    ) -> Result<Self, SettingsError> {
+        fn nets<'a, L: Layout + Clone>(
+            kernel: &'a Kernel,
+            l: L,
+            state: NetState<'a>,
+            slow: Option<(&'a Kernel, NetState<'a>)>,
+            filter: InputFilter,
+        ) -> Result<(Network<'a, L>, Option<Network<'a, L>>), SettingsError> {
+            let slow = match slow {
+                Some((k, s)) => {
+                    Some(Network::new(k, l.clone(), s, filter).map_err(SettingsError::Storage)?)
+                }
+                None => None,
+            };
+            let net = Network::new(kernel, l, state, filter).map_err(SettingsError::Storage)?;
+            Ok((net, slow))
+        }
         Ok(match layout {
             SensorLayout::Dense(l) => {
-                let net = Network::new(kernel, l, state, filter).map_err(SettingsError::Storage)?;
-                OnLayout::Dense(Pipeline::new(net, readout, period_us))
+                let (net, slow) = nets(kernel, l, state, slow, filter)?;
+                OnLayout::Dense(Pipeline::with_slow_units(net, slow, readout, period_us))
             }
             SensorLayout::Boxes(l) => {
-                let net = Network::new(kernel, l, state, filter).map_err(SettingsError::Storage)?;
-                OnLayout::Boxes(Pipeline::new(net, readout, period_us))
+                let (net, slow) = nets(kernel, l, state, slow, filter)?;
+                OnLayout::Boxes(Pipeline::with_slow_units(net, slow, readout, period_us))
             }
         })
     }
@@ -509,7 +554,17 @@ impl<'a, R: Readout> OnLayout<'a, R> {
 
     /// How full the unit pool is (`None`: no pool).
     pub fn pool_use(&self) -> Option<PoolUse> {
-        each_layout_pipeline!(self, p => p.network().pool_use())
+        each_layout_pipeline!(self, p => p.pool_use())
+    }
+
+    /// Unit inputs lost to a full unit pool (both networks of the spike readout).
+    pub fn pool_full(&self) -> u64 {
+        each_layout_pipeline!(self, p => p.pool_full())
+    }
+
+    /// Spikes of both networks (see [`Pipeline::spike_count`]).
+    pub fn spike_count(&self) -> u64 {
+        each_layout_pipeline!(self, p => p.spike_count())
     }
 
     /// The readout.
@@ -584,6 +639,16 @@ impl Built<'_> {
         each_pipeline!(self, p => p.pool_use())
     }
 
+    /// Unit inputs lost to a full unit pool (both networks of the spike readout).
+    pub fn pool_full(&self) -> u64 {
+        each_pipeline!(self, p => p.pool_full())
+    }
+
+    /// Spikes of the network, and of the slow units' network for the spike readout.
+    pub fn spike_count(&self) -> u64 {
+        each_pipeline!(self, p => p.spike_count())
+    }
+
     /// What the readout consumed: bursts decoded (calibrated, spikes) or spikes (normalized).
     pub fn outputs(&self) -> u64 {
         match self {
@@ -592,7 +657,7 @@ impl Built<'_> {
                 let s = p.net_stats();
                 s.spikes_lr + s.spikes_rl
             }
-            Built::Spikes(p) => p.readout().samples,
+            Built::Spikes(p) => p.readout().samples(),
         }
     }
 

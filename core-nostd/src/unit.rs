@@ -29,7 +29,7 @@
 use fixed::types::U1F31;
 
 use crate::exp_table::{scale_q31, ExpDecay, ONE_Q31};
-use crate::params::{ParamError, TdeParams, Trace, TRACE_MAX};
+use crate::params::{ParamError, TdeParams, Trace, TAU_SLOW_US, TRACE_MAX};
 
 mod orbit;
 
@@ -78,6 +78,13 @@ pub struct Kernel {
 impl Kernel {
     /// The kernel for the default parameters, computed at compile time (tables in flash).
     pub const DEFAULT: Self = Self::from_valid(TdeParams::DEFAULT);
+
+    /// The slow units' kernel: the default parameters with `tau_F` = [`TAU_SLOW_US`], for
+    /// edges too slow for the paper's units (computed at compile time, tables in flash).
+    pub const SLOW: Self = Self::from_valid(TdeParams {
+        tau_fac_us: TAU_SLOW_US,
+        ..TdeParams::DEFAULT
+    });
 
     /// Builds the kernel, or says which parameter the fixed-point core cannot take.
     pub fn new(params: TdeParams) -> Result<Self, ParamError> {

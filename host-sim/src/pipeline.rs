@@ -456,7 +456,7 @@ fn fixed(
         )?;
         outputs += p.outputs();
         ignored += p.net_stats().ignored;
-        pool_full += p.net_stats().pool_full;
+        pool_full += p.pool_full();
         if let Some(u) = p.pool_use() {
             let peak = pool.map_or(0, |q| q.peak).max(u.peak);
             pool = Some(PoolUse { peak, ..u });

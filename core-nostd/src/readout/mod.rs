@@ -16,7 +16,8 @@ pub mod spikes;
 
 use fixed::types::I16F16;
 
-use crate::network::NetSink;
+use crate::layout::Dir;
+use crate::network::{NetSink, Spike};
 
 /// One output sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -33,4 +34,29 @@ pub struct YawSample {
 pub trait Readout: NetSink {
     /// The value at output time `t_us` (called once per period, in order) and its flags.
     fn output(&mut self, t_us: u32) -> (I16F16, u8);
+
+    /// Whether the readout also reads a second network of slow units (the same layout and
+    /// events, `tau_F` = [`crate::params::TAU_SLOW_US`]); the pipeline then runs one and hands
+    /// its spikes to [`Readout::slow_spikes`].
+    const SLOW_UNITS: bool = false;
+
+    /// A run of spikes of one slow unit (as [`NetSink::spikes`] for the main network).
+    fn slow_spikes(&mut self, _cell: u32, _dir: Dir, _times: &[u32]) {}
+}
+
+/// The sink the slow units' network writes to: the readout's [`Readout::slow_spikes`].
+pub struct SlowSide<'r, R: Readout>(pub &'r mut R);
+
+impl<R: Readout> NetSink for SlowSide<'_, R> {
+    const SPIKES: bool = true;
+
+    #[inline]
+    fn spike(&mut self, s: Spike) {
+        self.0.slow_spikes(s.cell, s.dir, &[s.t_us]);
+    }
+
+    #[inline]
+    fn spikes(&mut self, cell: u32, dir: Dir, times: &[u32]) {
+        self.0.slow_spikes(cell, dir, times);
+    }
 }

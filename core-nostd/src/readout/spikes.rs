@@ -34,10 +34,19 @@
 //! output time, at most until a twin at rest could no longer answer within that range) for the
 //! twin's first or early spike after the event, whose latency or interval gives its drive.
 //!
-//! The network's units have the paper's `tau_F` = 20 ms: a burst needs a drive of about
-//! `w_F / 14.7`, so edges slower than ~47 ms per stride (a 2-spike burst) give nothing to
-//! decode. The calibrated readout's slow units (`tau_F` = 100 ms) have no spiking counterpart
-//! in the network, so this readout says "no evidence" below about 0.2 rad/s (DAVIS346).
+//! # Slow units
+//! The paper's units (`tau_F` = 20 ms) need a drive of about `w_F / 14.7` to burst, so edges
+//! slower than ~47 ms per stride (a 2-spike burst) give them nothing to decode: below about
+//! 0.2 rad/s on a DAVIS346. The pipeline therefore runs a second network over the same layout
+//! and events, of slow units ([`Kernel::SLOW`]: `tau_F` = [`crate::params::TAU_SLOW_US`], the
+//! same TRG trace and membrane), whose spikes this readout decodes the same way (the drive then
+//! reads with their `tau_F`) into the field's slow population, as the calibrated readout's slow
+//! units. Where the paper's units time an edge the slow ones are not read (their 100 ms memory
+//! blurs accelerations), by the calibrated readout's rules read from the slow units' own
+//! decodes: a slow decode counts only when the crossing it times is longer than the paper's
+//! units reach at a pixel without a recent onset (`tau_F ln(w_T w_F / D_min)`, 54 ms), and
+//! when the pixel's previous decoded onset came more than `tau_F ln 10` (46 ms: the paper's
+//! units' FAC trace is down to a tenth) before it.
 //!
 //! Causal: the network hands a spike at `t` over by the first output time at or after `t`,
 //! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
@@ -47,21 +56,22 @@
 //! to `tau`, the histograms `tau_A` to fill).
 //!
 //! # State
-//! One [`SpikeCell`] per pixel of the layout, from the caller (24 bytes, 12 per unit, on top
-//! of the spiking network's own state): each unit's burst in progress (where its membrane last
+//! One [`SpikeCell`] per pixel of the layout and population, from the caller (28 bytes, on top
+//! of the spiking networks' own state): each unit's burst in progress (where its membrane last
 //! started charging, 24 bits of µs; what the last interval said; 8 bytes), the pixel's last
-//! decoded onset and own trace, and each unit's decoded drive for it. Nothing is ever full and
+//! decoded onset and own trace, each unit's decoded drive for it, and its link in the queue of
+//! decodes waiting for a twin's answer. Nothing is ever full and
 //! no spike goes untracked: a pool of bursts in progress would not be smaller, as up to 45 %
 //! of the pixels burst at once on the shared sequences (a drone's fast turn), and a pool that
 //! overflows drops decodes unevenly (a pixel that keeps bursting keeps its slot). A sweep
 //! visits every cell every 4 s and forgets what is older than `M` (65 ms) or the own-trace
 //! memory, so that no stored time is read across its wrap. Decodes waiting for a twin's answer
-//! sit in a ring of [`WAITING`] entries in the readout; when it is full, the oldest is decided
-//! without waiting.
+//! wait in a queue linked through the cells (each cell at most once), so none is ever decided
+//! early for want of room.
 
 use fixed::types::I16F16;
 
-use super::calibrated::Calibration;
+use super::calibrated::{Calibration, SLOW_TAU_A_US};
 use super::field::{Field, Population};
 use super::shared::{field_over, min_burst_drive, OutputGate, RateDecoder, LOG2_1E6, WARMUP_US};
 use super::Readout;
@@ -77,12 +87,18 @@ const LOG2E_Q32: u64 = 6_196_328_019;
 /// `log2(e)` in Q16.
 const LOG2E_Q16: i64 = 94_548;
 
-/// Decodes that may wait for the twin unit's answer at once.
-pub const WAITING: usize = 1024;
+/// [`SpikeCell::next`] of a cell that is not in its population's waiting queue.
+const NOT_QUEUED: u32 = u32::MAX;
+/// [`SpikeCell::next`] of the last cell of the waiting queue.
+const QUEUE_END: u32 = u32::MAX - 1;
 
 /// Two decodes of one pixel whose TRG event times differ by at most this (µs) answer the
 /// same onset (decoded times are within a few µs of the true ones, rarely tens).
 const SAME_ONSET_US: u32 = 50;
+
+/// [`SpikeCell::onset`]'s bit saying that the onset before the last one came within the busy
+/// window before it.
+const BUSY: u32 = 1 << 2;
 
 /// A unit's drive must be at least `2^DOMINANCE_LOG2` times its twin's (the unit at the same
 /// pixel facing the other way) when both answer one TRG event.
@@ -197,18 +213,24 @@ impl Track {
 }
 
 /// What the spike readout keeps of one pixel: its two units' bursts in progress, its last
-/// decoded onset with its own trace, and each unit's decoded drive for that onset. 24 bytes.
+/// decoded onset with its own trace, each unit's decoded drive for that onset, and its link in
+/// the queue of decodes waiting for a twin's answer. 28 bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C)]
 pub struct SpikeCell {
     /// Its two units, in [`Dir`] slot order (their top bytes hold the own trace, U4F12:
     /// high byte in unit 0, low byte in unit 1; 0 = no onset).
     units: [Track; 2],
-    /// Time of the last decoded onset (µs, bits 31..2) and, in bit `u`, whether unit `u`'s
+    /// Time of the last decoded onset (µs, bits 31..3), whether the onset before it came less
+    /// than the readout's busy window earlier (bit 2; see [`Spikes::with_slow_units`]) and, in
+    /// bit `u`, whether unit `u`'s
     /// decode of it waits for its twin.
     onset: u32,
     /// `log2 D` (Q5.10) each unit decoded for that onset; `i16::MIN` = none.
     l2d: [i16; 2],
+    /// The next cell in the population's queue of decodes waiting for a twin's answer
+    /// ([`QUEUE_END`]: the last; [`NOT_QUEUED`]: this cell is not in it).
+    next: u32,
 }
 
 impl SpikeCell {
@@ -217,6 +239,7 @@ impl SpikeCell {
         units: [Track::IDLE; 2],
         onset: 0,
         l2d: [i16::MIN; 2],
+        next: NOT_QUEUED,
     };
 
     /// Bytes of one cell's state.
@@ -242,10 +265,16 @@ impl SpikeCell {
         b.s_ref = (b.s_ref & 0x00FF_FFFF) | ((bits & 0xFF) << 24);
     }
 
-    /// The last onset's time (µs, to 4 µs), if there is one.
+    /// The last onset's time (µs, to 8 µs), if there is one.
     #[inline]
     fn t_onset(&self) -> Option<u32> {
-        (self.own_bits() != 0).then_some(self.onset & !3)
+        (self.own_bits() != 0).then_some(self.onset & !7)
+    }
+
+    /// Whether the onset before the last came within the busy window before it.
+    #[inline]
+    fn busy(&self) -> bool {
+        self.onset & BUSY != 0
     }
 
     #[inline]
@@ -502,121 +531,160 @@ impl BurstDecoder {
     }
 }
 
-/// The spike readout's state: its per-pixel memory (borrowed), the field's histograms and
-/// the decoding constants.
-pub struct Spikes<'a, L: Layout> {
-    cal: Calibration,
-    layout: L,
+/// One population's decoding: its units' kernel (the FAC time constant a drive is read
+/// with), its per-pixel memory (borrowed) and the decodes waiting for a twin's answer.
+struct Decoding<'a> {
+    population: Population,
     kernel: &'a Kernel,
-    field: Field,
-    gate: OutputGate,
-    rates: RateDecoder,
     decoder: BurstDecoder,
     /// `log2(tau_F)` (µs, Q16.16).
     log2_tau_fac: i32,
-    /// `log2(w_T)` (Q16.16).
-    log2_w_trg: i32,
     /// The own-trace memory, `3 tau_F` (µs).
     memory_us: u32,
+    /// An onset within this long (µs) after the pixel's previous one marks the cell busy.
+    busy_us: u32,
+    /// The slow units: `log2` (Q16.16, s) of the longest crossing the paper's units time; a
+    /// decode of a shorter crossing, or at a busy cell, is theirs and not read here. `None`
+    /// for the paper's units.
+    fast_reach: Option<i32>,
     /// One per cell.
     cells: &'a mut [SpikeCell],
-    /// Cells swept per output, and the next one.
-    sweep: (usize, usize),
+    /// The queue of cells with a decode waiting for the twin's answer, in the order they
+    /// started waiting, linked through [`SpikeCell::next`]: first and last cell (`None`:
+    /// empty), length.
+    queue: Option<(u32, u32)>,
+    queued: usize,
+}
+
+/// What the populations' decodes go to: the field estimator and the geometry.
+struct Target<L: Layout> {
+    layout: L,
+    field: Field,
+    rates: RateDecoder,
+    /// `log2(w_T)` (Q16.16).
+    log2_w_trg: i32,
     /// The latest time seen (µs).
     now: u32,
     /// TRG events before this time (µs) are not decoded: the warm-up after the first output
     /// (every pixel's first event looks like an onset).
     decode_from: Option<u32>,
-    /// Decodes waiting for the twin's answer: `cell << 1 | unit`, a ring.
-    waiting: [u32; WAITING],
-    /// First entry of the ring.
-    wait_head: usize,
-    /// Entries in the ring.
-    wait_len: usize,
     /// Decodes added to the field so far.
-    pub samples: u64,
-    /// Spikes received.
-    pub spikes: u64,
+    samples: u64,
     /// Decodes dropped because the twin unit answered the same TRG event about as strongly.
-    pub ambiguous: u64,
+    ambiguous: u64,
+    /// Slow decodes dropped because the paper's units time their edge.
+    timed_by_fast: u64,
 }
 
-impl<'a, L: Layout> Spikes<'a, L> {
-    /// [`SpikeCell`]s the readout needs for `layout` (one per cell).
-    pub fn cells_for(layout: &L) -> usize {
-        layout.cell_count()
-    }
+/// The spike readout's state: each population's decoding, the field's histograms and the
+/// decoding constants.
+pub struct Spikes<'a, L: Layout> {
+    cal: Calibration,
+    gate: OutputGate,
+    target: Target<L>,
+    /// The paper's units (the main network).
+    fast: Decoding<'a>,
+    /// The slow units (the pipeline's second network), if read.
+    slow: Option<Decoding<'a>>,
+    /// A slow decode is dropped when the pixel's previous onset came up to this long (µs)
+    /// before it: `tau_F ln 10` of the paper's units (46 ms), the age at which their FAC
+    /// trace has fallen to a tenth.
+    fast_window_us: u32,
+    /// `log2` (Q16.16, s) of the longest crossing the paper's units burst on, at a pixel
+    /// without a recent onset: `tau_F ln(w_T w_F / D_min)` (54 ms).
+    fast_reach_log2_s: i32,
+    /// Cells swept per output, and the next one.
+    sweep: (usize, usize),
+    /// Spikes received from the paper's units.
+    pub spikes: u64,
+    /// Spikes received from the slow units.
+    pub slow_spikes: u64,
+}
 
-    /// A readout for the network of `kernel` over `layout`, with its memory in `cells` (at
-    /// least [`Spikes::cells_for`]; pixels beyond the slice are not decoded).
-    pub fn new(
+/// `log2` (Q16.16, s) of the longest crossing of the stride the units of `kernel` burst on at
+/// a pixel without a recent onset (own trace `w_F`): where `w_T w_F e^(-dt/tau_F)` falls to the
+/// smallest drive that makes a burst, `dt = tau_F ln(w_T w_F / D_min)`.
+fn fast_reach_log2_s(kernel: &Kernel) -> i32 {
+    let p = kernel.params();
+    let w_fac = kernel.fac_input(Trace::ZERO);
+    let l = log2_q16(u64::from(min_burst_drive(kernel).to_bits()), 27)
+        .saturating_sub(log2_q16(u64::from(p.w_trg.to_bits()), 16))
+        .saturating_sub(log2_q16(u64::from(w_fac.to_bits()), 27));
+    RateDecoder::log2_dt_s(l, log2_q16(u64::from(p.tau_fac_us), 0)).unwrap_or(i32::MIN)
+}
+
+impl<'a> Decoding<'a> {
+    fn new(
+        population: Population,
         kernel: &'a Kernel,
-        layout: L,
-        cal: Calibration,
         cells: &'a mut [SpikeCell],
+        busy_us: u32,
     ) -> Self {
-        let len = Self::cells_for(&layout).min(cells.len());
-        let cells = cells.get_mut(..len).unwrap_or_default();
         cells.fill(SpikeCell::EMPTY);
         let p = kernel.params();
-        let per_output = cells
-            .len()
-            .div_ceil((SWEEP_PERIOD_US / cal.period_us.max(1)).max(1) as usize)
-            .max(1);
-        let field = field_over(
-            &layout,
-            (cal.focal_px, cal.cx, cal.cy),
-            cal.field,
-            [cal.tau_a_us, cal.tau_a_us],
-            cal.period_us,
-        );
         Self {
-            rates: RateDecoder::new(&layout, cal.focal_px, cal.cx),
-            // The warm-up's onsets are not decoded; the first onsets after it are decoded up to
-            // `tau` later, and the histograms fill over `tau_A`.
-            gate: OutputGate::new(
-                cal.period_us,
-                WARMUP_US
-                    .saturating_add(p.tau_trg_us)
-                    .saturating_add(cal.tau_a_us),
-            ),
+            population,
+            kernel,
             decoder: BurstDecoder::new(kernel),
             log2_tau_fac: log2_q16(u64::from(p.tau_fac_us), 0),
-            log2_w_trg: log2_q16(u64::from(p.w_trg.to_bits()), 16),
             memory_us: p.tau_fac_us.saturating_mul(3),
-            sweep: (per_output, 0),
-            now: 0,
-            decode_from: None,
-            waiting: [0; WAITING],
-            wait_head: 0,
-            wait_len: 0,
-            samples: 0,
-            spikes: 0,
-            ambiguous: 0,
-            cal,
-            layout,
-            kernel,
-            field,
+            busy_us,
+            fast_reach: None,
             cells,
+            queue: None,
+            queued: 0,
         }
     }
 
-    /// The settings.
-    pub fn calibration(&self) -> &Calibration {
-        &self.cal
+    /// Appends `cell` to the waiting queue unless it is in it.
+    fn enqueue(&mut self, cell: usize) {
+        let Some(c) = self.cells.get_mut(cell) else {
+            return;
+        };
+        if c.next != NOT_QUEUED {
+            return;
+        }
+        c.next = QUEUE_END;
+        let cell = cell as u32;
+        self.queue = match self.queue {
+            None => Some((cell, cell)),
+            Some((head, tail)) => {
+                if let Some(t) = self.cells.get_mut(tail as usize) {
+                    t.next = cell;
+                }
+                Some((head, cell))
+            }
+        };
+        self.queued += 1;
     }
 
-    /// Units bursting at `t` (whose last interval says they will spike again).
-    pub fn bursting(&self, t: u32) -> usize {
-        self.cells
-            .iter()
-            .flat_map(|c| c.units.iter())
-            .filter(|u| {
-                u.state() == state::CLEAN
-                    && u.l2y() >= self.decoder.l2_min_drive
-                    && since24(t, u.s_ref()).is_some_and(|d| d <= self.decoder.tau_us)
-            })
-            .count()
+    /// Takes the first cell off the waiting queue.
+    fn dequeue(&mut self) -> Option<usize> {
+        let (head, tail) = self.queue?;
+        let next = self
+            .cells
+            .get_mut(head as usize)
+            .map_or(QUEUE_END, |c| core::mem::replace(&mut c.next, NOT_QUEUED));
+        self.queue = (next != QUEUE_END && head != tail).then_some((next, tail));
+        self.queued = self.queued.saturating_sub(1);
+        Some(head as usize)
+    }
+
+    /// One spike of unit `dir` at `cell`.
+    fn spike<L: Layout>(&mut self, target: &mut Target<L>, cell: u32, dir: Dir, t_us: u32) {
+        if EventTime::from_us(t_us).is_after(EventTime::from_us(target.now)) {
+            target.now = t_us;
+        }
+        let decoder = self.decoder;
+        let Some(d) = self
+            .cells
+            .get_mut(cell as usize)
+            .and_then(|c| c.units.get_mut(dir.slot()))
+            .and_then(|tr| decoder.spike(tr, t_us, true))
+        else {
+            return;
+        };
+        self.decoded(target, cell as usize, dir, d);
     }
 
     /// The own trace just after an onset at `t` of a pixel whose last onset was `(t0, own)`.
@@ -635,13 +703,13 @@ impl<'a, L: Layout> Spikes<'a, L> {
 
     /// A decoded TRG event of unit `dir` at `cell`: the pixel's own trace, the gate, then the
     /// decode waits for the twin's answer.
-    fn decoded(&mut self, cell: usize, dir: Dir, d: Decoded) {
+    fn decoded<L: Layout>(&mut self, target: &mut Target<L>, cell: usize, dir: Dir, d: Decoded) {
         let Some(c) = self.cells.get(cell).copied() else {
             return;
         };
         let last = c.t_onset();
         let dt = last.map_or(i32::MAX, |l| d.t_us.wrapping_sub(l) as i32);
-        let same = dt.unsigned_abs() <= SAME_ONSET_US + 4;
+        let same = dt.unsigned_abs() <= SAME_ONSET_US + 8;
         if !same && dt < 0 {
             // An earlier onset decoded late: its memory joins the later one.
             let w_fac = self.kernel.fac_input(Trace::ZERO);
@@ -656,11 +724,12 @@ impl<'a, L: Layout> Spikes<'a, L> {
         if !same {
             // A new onset: what waits for the last one is decided now.
             for u in 0..2 {
-                self.resolve(cell, u, None);
+                self.resolve(target, cell, u, None);
             }
             let own = self.own_after(last.map(|t0| (t0, c.own())), d.t_us);
             if let Some(c) = self.cells.get_mut(cell) {
-                c.onset = d.t_us & !3;
+                let busy = last.is_some_and(|l| d.t_us.wrapping_sub(l) <= self.busy_us);
+                c.onset = (d.t_us & !7) | if busy { BUSY } else { 0 };
                 c.set_own(Some(own));
                 c.l2d = [i16::MIN; 2];
             }
@@ -676,24 +745,20 @@ impl<'a, L: Layout> Spikes<'a, L> {
             return;
         }
         c.set_waits(u, true);
-        if self.wait_len >= WAITING {
-            let head = self.waiting.get(self.wait_head).copied().unwrap_or(0);
-            self.wait_head = (self.wait_head + 1) % WAITING;
-            self.wait_len -= 1;
-            self.resolve(head as usize >> 1, head as usize & 1, None);
-        }
-        let tail = (self.wait_head + self.wait_len) % WAITING;
-        if let Some(e) = self.waiting.get_mut(tail) {
-            *e = ((cell as u32) << 1) | u as u32;
-            self.wait_len += 1;
-        }
+        self.enqueue(cell);
     }
 
     /// Decides the decode waiting at `cell`, unit `u`: added to the field when the twin
     /// answered the same TRG event at most half as strongly, dropped when it answered more
     /// strongly; with no answer yet, added once a twin at rest could no longer answer within
     /// that range (at `now`), else left waiting (`false`). `now = None`: decide now.
-    fn resolve(&mut self, cell: usize, u: usize, now: Option<u32>) -> bool {
+    fn resolve<L: Layout>(
+        &mut self,
+        target: &mut Target<L>,
+        cell: usize,
+        u: usize,
+        now: Option<u32>,
+    ) -> bool {
         let decoder = self.decoder;
         let Some(c) = self.cells.get(cell).copied() else {
             return true;
@@ -712,7 +777,7 @@ impl<'a, L: Layout> Spikes<'a, L> {
         let answer = if twin_l2d != i16::MIN {
             Some(l2_unpack(twin_l2d))
         } else {
-            let t_spike = twin.last_spike(self.now, decoder.t_ref_us);
+            let t_spike = twin.last_spike(target.now, decoder.t_ref_us);
             let after = EventTime::from_us(t_spike).is_after(EventTime::from_us(t_trg));
             match twin.state() {
                 state::REST if after => decoder.drive_of_spike(t_trg, None, t_spike),
@@ -741,10 +806,10 @@ impl<'a, L: Layout> Spikes<'a, L> {
             c.set_waits(u, false);
         }
         if !add {
-            self.ambiguous += 1;
+            target.ambiguous += 1;
             return true;
         }
-        let warm = self
+        let warm = target
             .decode_from
             .is_some_and(|f| !EventTime::from_us(f).is_after(EventTime::from_us(t_trg)));
         if !warm {
@@ -752,72 +817,51 @@ impl<'a, L: Layout> Spikes<'a, L> {
         }
         // dt = -tau_F ln(D / (w_T own)), then the rotation at the pixel's column.
         let l = l2d
-            .saturating_sub(self.log2_w_trg)
+            .saturating_sub(target.log2_w_trg)
             .saturating_sub(log2_q16(u64::from(c.own().to_bits()), 27));
         let Some(l2dt) = RateDecoder::log2_dt_s(l, self.log2_tau_fac) else {
             return true;
         };
-        let (x, y) = self.layout.pixel(cell);
-        let l2 = self.rates.rotation_rate(l2dt, x);
-        self.field
-            .add(Population::Fast, x, y, l2, u == Dir::RightToLeft.slot());
-        self.samples += 1;
-        true
-    }
-}
-
-impl<L: Layout> NetSink for Spikes<'_, L> {
-    const SPIKES: bool = true;
-
-    fn spike(&mut self, s: Spike) {
-        self.spikes += 1;
-        if EventTime::from_us(s.t_us).is_after(EventTime::from_us(self.now)) {
-            self.now = s.t_us;
-        }
-        let decoder = self.decoder;
-        let Some(d) = self
-            .cells
-            .get_mut(s.cell as usize)
-            .and_then(|c| c.units.get_mut(s.dir.slot()))
-            .and_then(|tr| decoder.spike(tr, s.t_us, true))
-        else {
-            return;
-        };
-        self.decoded(s.cell as usize, s.dir, d);
-    }
-}
-
-impl<L: Layout> Readout for Spikes<'_, L> {
-    fn output(&mut self, t_us: u32) -> (I16F16, u8) {
-        if EventTime::from_us(t_us).is_after(EventTime::from_us(self.now)) {
-            self.now = t_us;
-        }
-        if self.decode_from.is_none() {
-            // The first output comes one period after the first event.
-            self.decode_from = Some(
-                t_us.wrapping_sub(self.cal.period_us)
-                    .wrapping_add(WARMUP_US),
-            );
-        }
-        // Every spike up to `t_us` is in: decide what waits for a twin that has answered or can
-        // no longer answer.
-        for _ in 0..self.wait_len {
-            let e = self.waiting.get(self.wait_head).copied().unwrap_or(0);
-            self.wait_head = (self.wait_head + 1) % WAITING;
-            self.wait_len -= 1;
-            if !self.resolve(e as usize >> 1, e as usize & 1, Some(t_us)) {
-                let tail = (self.wait_head + self.wait_len) % WAITING;
-                if let Some(w) = self.waiting.get_mut(tail) {
-                    *w = e;
-                    self.wait_len += 1;
-                }
+        if let Some(reach) = self.fast_reach {
+            if c.busy() || l2dt <= reach {
+                // The paper's units time this edge: it crossed within their reach, or the
+                // pixel had another onset shortly before.
+                target.timed_by_fast += 1;
+                return true;
             }
         }
-        // Forget bursts and onsets too old to matter (a few cells per output, so that each is
-        // visited long before its times wrap).
-        let (per_output, mut next) = self.sweep;
+        let (x, y) = target.layout.pixel(cell);
+        let l2 = target.rates.rotation_rate(l2dt, x);
+        target
+            .field
+            .add(self.population, x, y, l2, u == Dir::RightToLeft.slot());
+        target.samples += 1;
+        true
+    }
+
+    /// Decides what waits for a twin that has answered or can no longer answer by `t_us`.
+    fn settle<L: Layout>(&mut self, target: &mut Target<L>, t_us: u32) {
+        for _ in 0..self.queued {
+            let Some(cell) = self.dequeue() else {
+                break;
+            };
+            let mut done = true;
+            for u in 0..2 {
+                if !self.resolve(target, cell, u, Some(t_us)) {
+                    done = false;
+                }
+            }
+            if !done {
+                self.enqueue(cell);
+            }
+        }
+    }
+
+    /// Forgets bursts and onsets too old to matter in `count` cells from `next` on (so that
+    /// each is visited long before its times wrap); returns the next cell.
+    fn sweep(&mut self, t_us: u32, count: usize, mut next: usize) -> usize {
         let memory = self.memory_us;
-        for _ in 0..per_output.min(self.cells.len()) {
+        for _ in 0..count.min(self.cells.len()) {
             if next >= self.cells.len() {
                 next = 0;
             }
@@ -841,7 +885,170 @@ impl<L: Layout> Readout for Spikes<'_, L> {
             }
             next += 1;
         }
-        self.sweep = (per_output, next);
-        self.gate.output(&mut self.field)
+        next
+    }
+
+    /// Units bursting at `t` (whose last interval says they will spike again).
+    fn bursting(&self, t: u32) -> usize {
+        self.cells
+            .iter()
+            .flat_map(|c| c.units.iter())
+            .filter(|u| {
+                u.state() == state::CLEAN
+                    && u.l2y() >= self.decoder.l2_min_drive
+                    && since24(t, u.s_ref()).is_some_and(|d| d <= self.decoder.tau_us)
+            })
+            .count()
+    }
+}
+
+impl<'a, L: Layout> Spikes<'a, L> {
+    /// [`SpikeCell`]s the readout needs for `layout` per population (one per cell).
+    pub fn cells_for(layout: &L) -> usize {
+        layout.cell_count()
+    }
+
+    /// A readout for the network of `kernel` over `layout`, with its memory in `cells` (at
+    /// least [`Spikes::cells_for`]; pixels beyond the slice are not decoded).
+    pub fn new(
+        kernel: &'a Kernel,
+        layout: L,
+        cal: Calibration,
+        cells: &'a mut [SpikeCell],
+    ) -> Self {
+        let len = Self::cells_for(&layout).min(cells.len());
+        let cells = cells.get_mut(..len).unwrap_or_default();
+        let p = kernel.params();
+        let fast_window_us = (u64::from(p.tau_fac_us) * 23_026 / 10_000) as u32;
+        let per_output = cells
+            .len()
+            .div_ceil((SWEEP_PERIOD_US / cal.period_us.max(1)).max(1) as usize)
+            .max(1);
+        let field = field_over(
+            &layout,
+            (cal.focal_px, cal.cx, cal.cy),
+            cal.field,
+            [cal.tau_a_us, cal.tau_a_us.max(SLOW_TAU_A_US)],
+            cal.period_us,
+        );
+        Self {
+            target: Target {
+                rates: RateDecoder::new(&layout, cal.focal_px, cal.cx),
+                log2_w_trg: log2_q16(u64::from(p.w_trg.to_bits()), 16),
+                layout,
+                field,
+                now: 0,
+                decode_from: None,
+                samples: 0,
+                ambiguous: 0,
+                timed_by_fast: 0,
+            },
+            // The warm-up's onsets are not decoded; the first onsets after it are decoded up to
+            // `tau` later, and the histograms fill over `tau_A`.
+            gate: OutputGate::new(
+                cal.period_us,
+                WARMUP_US
+                    .saturating_add(p.tau_trg_us)
+                    .saturating_add(cal.tau_a_us),
+            ),
+            fast: Decoding::new(Population::Fast, kernel, cells, fast_window_us),
+            slow: None,
+            fast_window_us,
+            fast_reach_log2_s: fast_reach_log2_s(kernel),
+            sweep: (per_output, 0),
+            spikes: 0,
+            slow_spikes: 0,
+            cal,
+        }
+    }
+
+    /// The same readout also decoding the slow units of `kernel` (a network with
+    /// `tau_F` = [`crate::params::TAU_SLOW_US`]: [`Kernel::SLOW`]), with their memory in
+    /// `cells` (at least [`Spikes::cells_for`]). Their decodes go to the field's slow
+    /// population.
+    pub fn with_slow_units(mut self, kernel: &'a Kernel, cells: &'a mut [SpikeCell]) -> Self {
+        let len = Self::cells_for(&self.target.layout).min(cells.len());
+        let cells = cells.get_mut(..len).unwrap_or_default();
+        let mut slow = Decoding::new(Population::Slow, kernel, cells, self.fast_window_us);
+        slow.fast_reach = Some(self.fast_reach_log2_s);
+        self.slow = Some(slow);
+        self
+    }
+
+    /// The settings.
+    pub fn calibration(&self) -> &Calibration {
+        &self.cal
+    }
+
+    /// Decodes added to the field so far.
+    pub fn samples(&self) -> u64 {
+        self.target.samples
+    }
+
+    /// Decodes dropped because the twin unit answered the same TRG event about as strongly.
+    pub fn ambiguous(&self) -> u64 {
+        self.target.ambiguous
+    }
+
+    /// Slow decodes dropped because the paper's units time the pixel's edges.
+    pub fn timed_by_fast(&self) -> u64 {
+        self.target.timed_by_fast
+    }
+
+    /// Units of the paper's population bursting at `t` (whose last interval says they will
+    /// spike again).
+    pub fn bursting(&self, t: u32) -> usize {
+        self.fast.bursting(t)
+    }
+}
+
+impl<L: Layout> NetSink for Spikes<'_, L> {
+    const SPIKES: bool = true;
+
+    fn spike(&mut self, s: Spike) {
+        self.spikes += 1;
+        self.fast.spike(&mut self.target, s.cell, s.dir, s.t_us);
+    }
+}
+
+impl<L: Layout> Readout for Spikes<'_, L> {
+    const SLOW_UNITS: bool = true;
+
+    fn slow_spikes(&mut self, cell: u32, dir: Dir, times: &[u32]) {
+        let Some(slow) = self.slow.as_mut() else {
+            return;
+        };
+        for &t in times {
+            self.slow_spikes += 1;
+            slow.spike(&mut self.target, cell, dir, t);
+        }
+    }
+
+    fn output(&mut self, t_us: u32) -> (I16F16, u8) {
+        let target = &mut self.target;
+        if EventTime::from_us(t_us).is_after(EventTime::from_us(target.now)) {
+            target.now = t_us;
+        }
+        if target.decode_from.is_none() {
+            // The first output comes one period after the first event.
+            target.decode_from = Some(
+                t_us.wrapping_sub(self.cal.period_us)
+                    .wrapping_add(WARMUP_US),
+            );
+        }
+        // Every spike up to `t_us` is in: decide what waits for a twin that has answered or can
+        // no longer answer.
+        self.fast.settle(target, t_us);
+        if let Some(slow) = self.slow.as_mut() {
+            slow.settle(target, t_us);
+        }
+        // Forget bursts and onsets too old to matter (a few cells per output).
+        let (per_output, next) = self.sweep;
+        let after = self.fast.sweep(t_us, per_output, next);
+        if let Some(slow) = self.slow.as_mut() {
+            slow.sweep(t_us, per_output, next);
+        }
+        self.sweep = (per_output, after);
+        self.gate.output(&mut target.field)
     }
 }

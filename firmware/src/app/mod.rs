@@ -141,7 +141,8 @@ pub struct Stats {
     pub yaw_out: u32,
     /// Yaw frames the sink had no room for.
     pub yaw_dropped: u32,
-    /// Cost of the processing (pipeline calls only), in [`CostMeter`] units.
+    /// Cost of the processing (pipeline calls only, the meter's own cost left out), in
+    /// [`CostMeter`] units.
     pub cost_units: u64,
     /// Cost of the input stage's decoding (framing, CRCs, copies), in [`CostMeter`] units.
     pub input_cost_units: u64,
@@ -223,8 +224,22 @@ pub trait CostMeter {
     const UNIT: &'static str;
     /// Units of the raw counter's one step (QEMU: 40 >> shift instructions per SysTick step).
     fn units_per_tick() -> u32;
-    /// The raw counter now.
+    /// The counter now: it must count every step of an interval however long the work (not
+    /// modulo a timer period), up to its 32-bit wrap.
     fn now() -> u32;
     /// Ticks from `earlier` to `later` (handles the counter's wrap).
     fn ticks(earlier: u32, later: u32) -> u32;
+
+    /// What the meter reads of an empty interval, in units × 1024 (the sum over 1024 of them):
+    /// the cost of reading it, which the processing cost leaves out.
+    fn overhead_x1024() -> u64 {
+        let mut ticks = 0u64;
+        for _ in 0..1024 {
+            let a = Self::now();
+            core::hint::black_box(());
+            let b = Self::now();
+            ticks += u64::from(Self::ticks(a, b));
+        }
+        ticks * u64::from(Self::units_per_tick())
+    }
 }

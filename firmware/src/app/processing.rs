@@ -92,6 +92,7 @@ pub async fn run<K: YawSink, M: CostMeter>(
     let mut last: Option<(u32, Instant)> = None;
     let start = Instant::now();
     let mut idle_tick: u32 = 0;
+    let meter_overhead_x1024 = M::overhead_x1024();
     loop {
         let msg = match clock {
             Clock::EventTimeOnly => FRAMES.receive().await,
@@ -161,7 +162,9 @@ pub async fn run<K: YawSink, M: CostMeter>(
         update_stats(|st| {
             st.frames_processed += 1;
             st.events = st.events.wrapping_add(events);
-            st.cost_units += cost * u64::from(M::units_per_tick());
+            let gross_x1024 = cost * u64::from(M::units_per_tick()) * 1024;
+            let overhead = u64::from(events) * meter_overhead_x1024;
+            st.cost_units += gross_x1024.saturating_sub(overhead) / 1024;
             st.decoder_errors = e3 as u32;
         });
         // Let the input stage run between frames.
@@ -197,15 +200,15 @@ impl<K: YawSink, M: CostMeter> WithPipeline for FrameEvents<'_, '_, '_, K, M> {
     }
 }
 
-/// Adds a finished run's network counters (spikes, unit pool) to the stats.
+/// Adds a finished run's network counters (spikes of both networks, unit pool) to the stats.
 fn record_network(pipeline: &Built<'_>) {
-    let net = *pipeline.net_stats();
+    let (spikes, pool_full) = (pipeline.spike_count(), pipeline.pool_full());
     let pool = pipeline.pool_use();
     update_stats(|st| {
-        st.spikes += net.spikes_lr + net.spikes_rl;
+        st.spikes += spikes;
         st.pool_full = st
             .pool_full
-            .saturating_add(u32::try_from(net.pool_full).unwrap_or(u32::MAX));
+            .saturating_add(u32::try_from(pool_full).unwrap_or(u32::MAX));
         if let Some(p) = pool {
             st.pool_capacity = p.capacity as u32;
             st.pool_peak = st.pool_peak.max(p.peak as u32);

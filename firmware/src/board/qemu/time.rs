@@ -108,18 +108,26 @@ impl CostMeter for SysTickMeter {
         INSTRUCTIONS_PER_STEP.load(Ordering::Relaxed)
     }
 
+    /// SysTick steps since start, modulo 2^32 (wraps after 171 s; an interval is measured
+    /// right while it is shorter): whole periods plus the counter's progress, so that an
+    /// interval spanning 1 ms interrupts counts them all (the raw counter alone would count
+    /// it modulo one period). Thread mode only: a period's interrupt runs at its wrap, so a
+    /// wrap between the reads shows as a changed period count, and the reads are retried.
     #[inline(always)]
     fn now() -> u32 {
-        SYST::get_current()
+        loop {
+            let p = PERIODS.load(Ordering::Relaxed);
+            let v = SYST::get_current();
+            if PERIODS.load(Ordering::Relaxed) == p {
+                return p
+                    .wrapping_mul(RELOAD)
+                    .wrapping_add(RELOAD - 1 - v.min(RELOAD - 1));
+            }
+        }
     }
 
     #[inline(always)]
     fn ticks(earlier: u32, later: u32) -> u32 {
-        // A down counter from RELOAD - 1 to 0.
-        if earlier >= later {
-            earlier - later
-        } else {
-            earlier + RELOAD - later
-        }
+        later.wrapping_sub(earlier)
     }
 }
