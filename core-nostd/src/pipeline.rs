@@ -67,11 +67,6 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         &self.net
     }
 
-    /// The network of slow units, if the readout reads one.
-    pub fn slow_network(&self) -> Option<&Network<'a, L>> {
-        self.slow.as_ref()
-    }
-
     /// How full the unit pool is; with the slow units' network, whichever of the two pools
     /// (each of the same size) had the higher peak. `None`: no pool.
     pub fn pool_use(&self) -> Option<PoolUse> {

@@ -541,12 +541,8 @@ struct Decoding<'a> {
     log2_tau_fac: i32,
     /// The own-trace memory, `3 tau_F` (µs).
     memory_us: u32,
-    /// An onset within this long (µs) after the pixel's previous one marks the cell busy.
-    busy_us: u32,
-    /// The slow units: `log2` (Q16.16, s) of the longest crossing the paper's units time; a
-    /// decode of a shorter crossing, or at a busy cell, is theirs and not read here. `None`
-    /// for the paper's units.
-    fast_reach: Option<i32>,
+    /// The slow units' rule (`None` for the paper's units).
+    slow_rule: Option<SlowRule>,
     /// One per cell.
     cells: &'a mut [SpikeCell],
     /// The queue of cells with a decode waiting for the twin's answer, in the order they
@@ -554,6 +550,36 @@ struct Decoding<'a> {
     /// empty), length.
     queue: Option<(u32, u32)>,
     queued: usize,
+}
+
+/// Where the paper's units time an edge, the slow units' decode of it is not read: derived from
+/// the paper's units' kernel.
+#[derive(Clone, Copy)]
+struct SlowRule {
+    /// An onset within this long (µs) after the pixel's previous one marks the cell busy:
+    /// `tau_F ln 10` of the paper's units (46 ms), the age at which their FAC trace has fallen
+    /// to a tenth.
+    busy_us: u32,
+    /// `log2` (Q16.16, s) of the longest crossing the paper's units burst on at a pixel without
+    /// a recent onset (own trace `w_F`): where `w_T w_F e^(-dt/tau_F)` falls to the smallest
+    /// drive that makes a burst, `dt = tau_F ln(w_T w_F / D_min)` (54 ms).
+    reach_log2_s: i32,
+}
+
+impl SlowRule {
+    /// The rule for slow units beside the paper's units of `fast`.
+    fn beside(fast: &Kernel) -> Self {
+        let p = fast.params();
+        let w_fac = fast.fac_input(Trace::ZERO);
+        let l = log2_q16(u64::from(min_burst_drive(fast).to_bits()), 27)
+            .saturating_sub(log2_q16(u64::from(p.w_trg.to_bits()), 16))
+            .saturating_sub(log2_q16(u64::from(w_fac.to_bits()), 27));
+        Self {
+            busy_us: (u64::from(p.tau_fac_us) * 23_026 / 10_000) as u32,
+            reach_log2_s: RateDecoder::log2_dt_s(l, log2_q16(u64::from(p.tau_fac_us), 0))
+                .unwrap_or(i32::MIN),
+        }
+    }
 }
 
 /// What the populations' decodes go to: the field estimator and the geometry.
@@ -572,8 +598,6 @@ struct Target<L: Layout> {
     samples: u64,
     /// Decodes dropped because the twin unit answered the same TRG event about as strongly.
     ambiguous: u64,
-    /// Slow decodes dropped because the paper's units time their edge.
-    timed_by_fast: u64,
 }
 
 /// The spike readout's state: each population's decoding, the field's histograms and the
@@ -586,31 +610,8 @@ pub struct Spikes<'a, L: Layout> {
     fast: Decoding<'a>,
     /// The slow units (the pipeline's second network), if read.
     slow: Option<Decoding<'a>>,
-    /// A slow decode is dropped when the pixel's previous onset came up to this long (µs)
-    /// before it: `tau_F ln 10` of the paper's units (46 ms), the age at which their FAC
-    /// trace has fallen to a tenth.
-    fast_window_us: u32,
-    /// `log2` (Q16.16, s) of the longest crossing the paper's units burst on, at a pixel
-    /// without a recent onset: `tau_F ln(w_T w_F / D_min)` (54 ms).
-    fast_reach_log2_s: i32,
     /// Cells swept per output, and the next one.
     sweep: (usize, usize),
-    /// Spikes received from the paper's units.
-    pub spikes: u64,
-    /// Spikes received from the slow units.
-    pub slow_spikes: u64,
-}
-
-/// `log2` (Q16.16, s) of the longest crossing of the stride the units of `kernel` burst on at
-/// a pixel without a recent onset (own trace `w_F`): where `w_T w_F e^(-dt/tau_F)` falls to the
-/// smallest drive that makes a burst, `dt = tau_F ln(w_T w_F / D_min)`.
-fn fast_reach_log2_s(kernel: &Kernel) -> i32 {
-    let p = kernel.params();
-    let w_fac = kernel.fac_input(Trace::ZERO);
-    let l = log2_q16(u64::from(min_burst_drive(kernel).to_bits()), 27)
-        .saturating_sub(log2_q16(u64::from(p.w_trg.to_bits()), 16))
-        .saturating_sub(log2_q16(u64::from(w_fac.to_bits()), 27));
-    RateDecoder::log2_dt_s(l, log2_q16(u64::from(p.tau_fac_us), 0)).unwrap_or(i32::MIN)
 }
 
 impl<'a> Decoding<'a> {
@@ -618,7 +619,7 @@ impl<'a> Decoding<'a> {
         population: Population,
         kernel: &'a Kernel,
         cells: &'a mut [SpikeCell],
-        busy_us: u32,
+        slow_rule: Option<SlowRule>,
     ) -> Self {
         cells.fill(SpikeCell::EMPTY);
         let p = kernel.params();
@@ -628,8 +629,7 @@ impl<'a> Decoding<'a> {
             decoder: BurstDecoder::new(kernel),
             log2_tau_fac: log2_q16(u64::from(p.tau_fac_us), 0),
             memory_us: p.tau_fac_us.saturating_mul(3),
-            busy_us,
-            fast_reach: None,
+            slow_rule,
             cells,
             queue: None,
             queued: 0,
@@ -728,7 +728,9 @@ impl<'a> Decoding<'a> {
             }
             let own = self.own_after(last.map(|t0| (t0, c.own())), d.t_us);
             if let Some(c) = self.cells.get_mut(cell) {
-                let busy = last.is_some_and(|l| d.t_us.wrapping_sub(l) <= self.busy_us);
+                let busy = self
+                    .slow_rule
+                    .is_some_and(|r| last.is_some_and(|l| d.t_us.wrapping_sub(l) <= r.busy_us));
                 c.onset = (d.t_us & !7) | if busy { BUSY } else { 0 };
                 c.set_own(Some(own));
                 c.l2d = [i16::MIN; 2];
@@ -822,11 +824,10 @@ impl<'a> Decoding<'a> {
         let Some(l2dt) = RateDecoder::log2_dt_s(l, self.log2_tau_fac) else {
             return true;
         };
-        if let Some(reach) = self.fast_reach {
-            if c.busy() || l2dt <= reach {
+        if let Some(rule) = self.slow_rule {
+            if c.busy() || l2dt <= rule.reach_log2_s {
                 // The paper's units time this edge: it crossed within their reach, or the
                 // pixel had another onset shortly before.
-                target.timed_by_fast += 1;
                 return true;
             }
         }
@@ -887,19 +888,6 @@ impl<'a> Decoding<'a> {
         }
         next
     }
-
-    /// Units bursting at `t` (whose last interval says they will spike again).
-    fn bursting(&self, t: u32) -> usize {
-        self.cells
-            .iter()
-            .flat_map(|c| c.units.iter())
-            .filter(|u| {
-                u.state() == state::CLEAN
-                    && u.l2y() >= self.decoder.l2_min_drive
-                    && since24(t, u.s_ref()).is_some_and(|d| d <= self.decoder.tau_us)
-            })
-            .count()
-    }
 }
 
 impl<'a, L: Layout> Spikes<'a, L> {
@@ -919,7 +907,6 @@ impl<'a, L: Layout> Spikes<'a, L> {
         let len = Self::cells_for(&layout).min(cells.len());
         let cells = cells.get_mut(..len).unwrap_or_default();
         let p = kernel.params();
-        let fast_window_us = (u64::from(p.tau_fac_us) * 23_026 / 10_000) as u32;
         let per_output = cells
             .len()
             .div_ceil((SWEEP_PERIOD_US / cal.period_us.max(1)).max(1) as usize)
@@ -941,7 +928,6 @@ impl<'a, L: Layout> Spikes<'a, L> {
                 decode_from: None,
                 samples: 0,
                 ambiguous: 0,
-                timed_by_fast: 0,
             },
             // The warm-up's onsets are not decoded; the first onsets after it are decoded up to
             // `tau` later, and the histograms fill over `tau_A`.
@@ -951,13 +937,9 @@ impl<'a, L: Layout> Spikes<'a, L> {
                     .saturating_add(p.tau_trg_us)
                     .saturating_add(cal.tau_a_us),
             ),
-            fast: Decoding::new(Population::Fast, kernel, cells, fast_window_us),
+            fast: Decoding::new(Population::Fast, kernel, cells, None),
             slow: None,
-            fast_window_us,
-            fast_reach_log2_s: fast_reach_log2_s(kernel),
             sweep: (per_output, 0),
-            spikes: 0,
-            slow_spikes: 0,
             cal,
         }
     }
@@ -969,9 +951,8 @@ impl<'a, L: Layout> Spikes<'a, L> {
     pub fn with_slow_units(mut self, kernel: &'a Kernel, cells: &'a mut [SpikeCell]) -> Self {
         let len = Self::cells_for(&self.target.layout).min(cells.len());
         let cells = cells.get_mut(..len).unwrap_or_default();
-        let mut slow = Decoding::new(Population::Slow, kernel, cells, self.fast_window_us);
-        slow.fast_reach = Some(self.fast_reach_log2_s);
-        self.slow = Some(slow);
+        let rule = SlowRule::beside(self.fast.kernel);
+        self.slow = Some(Decoding::new(Population::Slow, kernel, cells, Some(rule)));
         self
     }
 
@@ -989,24 +970,12 @@ impl<'a, L: Layout> Spikes<'a, L> {
     pub fn ambiguous(&self) -> u64 {
         self.target.ambiguous
     }
-
-    /// Slow decodes dropped because the paper's units time the pixel's edges.
-    pub fn timed_by_fast(&self) -> u64 {
-        self.target.timed_by_fast
-    }
-
-    /// Units of the paper's population bursting at `t` (whose last interval says they will
-    /// spike again).
-    pub fn bursting(&self, t: u32) -> usize {
-        self.fast.bursting(t)
-    }
 }
 
 impl<L: Layout> NetSink for Spikes<'_, L> {
     const SPIKES: bool = true;
 
     fn spike(&mut self, s: Spike) {
-        self.spikes += 1;
         self.fast.spike(&mut self.target, s.cell, s.dir, s.t_us);
     }
 }
@@ -1019,7 +988,6 @@ impl<L: Layout> Readout for Spikes<'_, L> {
             return;
         };
         for &t in times {
-            self.slow_spikes += 1;
             slow.spike(&mut self.target, cell, dir, t);
         }
     }
