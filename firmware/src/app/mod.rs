@@ -227,8 +227,11 @@ pub trait CostMeter {
     /// The counter now: it must count every step of an interval however long the work (not
     /// modulo a timer period), up to its 32-bit wrap.
     fn now() -> u32;
-    /// Ticks from `earlier` to `later` (handles the counter's wrap).
-    fn ticks(earlier: u32, later: u32) -> u32;
+    /// Ticks from `earlier` to `later` (across the counter's 32-bit wrap).
+    #[inline(always)]
+    fn ticks(earlier: u32, later: u32) -> u32 {
+        later.wrapping_sub(earlier)
+    }
 
     /// What the meter reads of an empty interval, in units × 1024 (the sum over 1024 of them):
     /// the cost of reading it, which the processing cost leaves out.

@@ -73,10 +73,6 @@ impl CostMeter for CycleMeter {
     fn now() -> u32 {
         DWT::cycle_count()
     }
-
-    fn ticks(earlier: u32, later: u32) -> u32 {
-        later.wrapping_sub(earlier)
-    }
 }
 
 #[embassy_executor::task]

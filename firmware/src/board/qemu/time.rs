@@ -43,6 +43,12 @@ static PERIODS: AtomicU32 = AtomicU32::new(0);
 static QUEUE: Mutex<CriticalSectionRawMutex, RefCell<Queue>> =
     Mutex::new(RefCell::new(Queue::new()));
 
+/// SysTick steps at counter value `v` (counting down from `RELOAD - 1`) in period `p`.
+#[inline(always)]
+fn steps_at(p: u32, v: u32) -> u64 {
+    u64::from(p) * u64::from(RELOAD) + u64::from(RELOAD - 1 - v.min(RELOAD - 1))
+}
+
 /// SysTick steps since start (25 MHz).
 fn steps() -> u64 {
     critical_section::with(|_| {
@@ -53,7 +59,7 @@ fn steps() -> u64 {
             p = p.wrapping_add(1);
             v = SYST::get_current();
         }
-        u64::from(p) * u64::from(RELOAD) + u64::from(RELOAD - 1 - v.min(RELOAD - 1))
+        steps_at(p, v)
     })
 }
 
@@ -119,15 +125,8 @@ impl CostMeter for SysTickMeter {
             let p = PERIODS.load(Ordering::Relaxed);
             let v = SYST::get_current();
             if PERIODS.load(Ordering::Relaxed) == p {
-                return p
-                    .wrapping_mul(RELOAD)
-                    .wrapping_add(RELOAD - 1 - v.min(RELOAD - 1));
+                return steps_at(p, v) as u32;
             }
         }
-    }
-
-    #[inline(always)]
-    fn ticks(earlier: u32, later: u32) -> u32 {
-        later.wrapping_sub(earlier)
     }
 }
