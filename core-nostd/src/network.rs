@@ -63,6 +63,16 @@ fn decay_slow(i: Trace, dt_us: u32) -> Trace {
     Trace::from_bits(scale_q31(i.to_bits(), SLOW_DECAY.decay_bits(dt_us)))
 }
 
+/// The FAC traces of a pixel's units' FAC pixels at one distance, at an event's time.
+#[derive(Clone, Copy, Debug, Default)]
+struct Neighbours {
+    /// Stored FAC trace bits (see [`Cell`]) of the left-to-right and right-to-left unit's FAC
+    /// pixel (0 where the pixel has no such unit).
+    fac: [u32; 2],
+    /// Their slow FAC traces (zero unless the sink asks for them).
+    slow: [Trace; 2],
+}
+
 /// Stored FAC trace: top bit = polarity of the pixel's last event (1 = ON).
 const POLARITY: u32 = 1 << 31;
 
@@ -211,6 +221,12 @@ pub struct Trigger {
     pub slow_drive: [Trace; 2],
     /// The pixel's own slow FAC trace just after this event (see `slow_drive`).
     pub own_slow: Trace,
+    /// Drives of the near units: the same two units with their FAC pixel one pixel away
+    /// instead of the layout's stride. Zero unless the sink asks for them ([`NetSink::NEAR`])
+    /// and the stride is above 1.
+    pub near_drive: [Trace; 2],
+    /// The same for the slow units (zero unless `slow_drive` and `near_drive` are both kept).
+    pub near_slow_drive: [Trace; 2],
 }
 
 /// Most spikes the network hands a sink at once ([`NetSink::spikes`]).
@@ -224,6 +240,10 @@ pub trait NetSink {
     /// Whether this sink wants the slow units' drives in its [`Trigger`]s. When `false` the
     /// network keeps no slow traces (they cost three more decays per onset).
     const SLOW: bool = false;
+    /// Whether this sink wants the near units' drives in its [`Trigger`]s (FAC pixel one pixel
+    /// away). When `false` the network reads only the layout's stride (the near drives cost
+    /// two more neighbour reads per onset).
+    const NEAR: bool = false;
     /// One triggering event.
     fn trigger(&mut self, _t: &Trigger) {}
     /// One spike (spikes of one unit arrive in time order; a spike at `t` arrives before any
@@ -717,13 +737,19 @@ impl<'a, L: Layout> Network<'a, L> {
             self.stats.out_of_order += 1;
         }
         let mask = self.layout.units_at(ev.x, ev.y, c);
-        let (fac, slow) = self.neighbour_traces::<S>(ev, c, mask);
+        let stride = i32::from(self.layout.stride());
+        let far = self.neighbour_traces::<S>(ev, c, mask, stride);
+        let near = if S::NEAR && stride > 1 {
+            self.neighbour_traces::<S>(ev, c, mask, 1)
+        } else {
+            Neighbours::default()
+        };
         if self.spiking::<S>() {
             self.units_to_event::<S>(c, &own, ev.t_us, sink);
         }
-        self.trigger_record(c, ev, mask, &own, slow_onset, fac, slow, sink);
+        self.trigger_record(c, ev, mask, &own, slow_onset, [far, near], sink);
         if self.spiking::<S>() {
-            self.unit_update(c, mask, &own, ev.t_us, fac, sink);
+            self.unit_update(c, mask, &own, ev.t_us, far.fac, sink);
         }
     }
 
@@ -774,32 +800,32 @@ impl<'a, L: Layout> Network<'a, L> {
     }
 
     /// The FAC traces (bits, and slow traces when the sink wants them) of the FAC pixels of
-    /// the units in `mask`, at the event time: what the units' TRG input multiplies.
+    /// the units in `mask` at distance `s`, at the event time: what the units' TRG input
+    /// multiplies.
     #[inline]
     fn neighbour_traces<S: NetSink>(
         &self,
         ev: Event,
         c: usize,
         mask: UnitMask,
-    ) -> ([u32; 2], [Trace; 2]) {
-        let s = i32::from(self.layout.stride());
-        let mut fac = [0u32; 2];
-        let mut slow = [Trace::ZERO; 2];
+        s: i32,
+    ) -> Neighbours {
+        let mut nbs = Neighbours::default();
         for (slot, dx) in [(0usize, -s), (1, s)] {
             if mask & (1 << slot) == 0 {
                 continue;
             }
             let nb = self.layout.neighbor(ev.x, ev.y, c, dx);
-            if let Some(f) = fac.get_mut(slot) {
+            if let Some(f) = nbs.fac.get_mut(slot) {
                 *f = self.fac_at(nb, ev.t_us);
             }
             if self.keeps_slow::<S>() {
-                if let Some(f) = slow.get_mut(slot) {
+                if let Some(f) = nbs.slow.get_mut(slot) {
                     *f = self.slow_at(nb, ev.t_us);
                 }
             }
         }
-        (fac, slow)
+        nbs
     }
 
     /// The pixel's own traces take the event (its FAC trace `+= w_F`, the slow one on a slow
@@ -813,14 +839,15 @@ impl<'a, L: Layout> Network<'a, L> {
         mask: UnitMask,
         own: &OwnTraces,
         slow_onset: bool,
-        fac: [u32; 2],
-        mut slow: [Trace; 2],
+        [far, near]: [Neighbours; 2],
         sink: &mut S,
     ) {
         let kernel = self.kernel;
         let wide = self.wide();
         let keeps_slow = self.keeps_slow::<S>();
-        let [lr, rl] = fac.map(|f| self.fac_trace(f));
+        let drives = |nbs: Neighbours| nbs.fac.map(|f| kernel.drive(self.fac_trace(f)));
+        let (drive, near_drive) = (drives(far), drives(near));
+        let (mut slow, mut near_slow) = (far.slow, near.slow);
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };
@@ -847,21 +874,23 @@ impl<'a, L: Layout> Network<'a, L> {
                 cell.aux = own.slow.to_bits();
                 // Not a new edge for the slow units: no slow drive, nothing to decode.
                 slow = [Trace::ZERO; 2];
+                near_slow = [Trace::ZERO; 2];
                 Trace::ZERO
             }
         } else {
             Trace::ZERO
         };
         if mask != 0 {
-            let [slr, srl] = slow;
             sink.trigger(&Trigger {
                 t_us: ev.t_us,
                 x: ev.x,
                 y: ev.y,
-                drive: [kernel.drive(lr), kernel.drive(rl)],
+                drive,
                 own_fac,
-                slow_drive: [kernel.drive(slr), kernel.drive(srl)],
+                slow_drive: slow.map(|i| kernel.drive(i)),
                 own_slow,
+                near_drive,
+                near_slow_drive: near_slow.map(|i| kernel.drive(i)),
             });
         }
     }

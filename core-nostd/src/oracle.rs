@@ -439,8 +439,56 @@ pub struct OracleYaw<L: crate::layout::Layout> {
     last_event: f64,
     /// Whether the layout's units have twins ([`crate::readout::calibrated::has_twins`]).
     twins: bool,
+    /// Whether the near units or the layout's are decoded.
+    stride: OracleStrideChoice,
     /// Decoded bursts so far.
     pub samples: u64,
+}
+
+/// [`crate::readout::stride_choice`] in f64: the paper's units' decodes of both strides per
+/// region and sign, decayed exactly each period; the near units answer while their sign
+/// agreement is at least the layout's.
+struct OracleStrideChoice {
+    /// Decodes `[near, layout][region][negative, positive]`.
+    counts: [[[f64; 2]; crate::readout::field::REGIONS]; 2],
+    /// Whether the near units are decoded.
+    near: bool,
+    /// Time since the start (µs).
+    settled: f64,
+}
+
+impl OracleStrideChoice {
+    fn agreement(&self, stride: usize) -> f64 {
+        let random = f64::from(crate::readout::field::RANDOM_AGREEMENT);
+        self.counts.get(stride).map_or(0.0, |regions| {
+            regions
+                .iter()
+                .map(|&[n, p]| {
+                    if n + p > 0.0 {
+                        ((p - n) * (p - n) / (n + p) - random).max(0.0)
+                    } else {
+                        0.0
+                    }
+                })
+                .sum()
+        })
+    }
+
+    /// One output period of `period` µs.
+    fn age(&mut self, period: f64) {
+        use crate::readout::stride_choice::{MEMORY_US, SETTLE_US};
+        self.settled += period;
+        if self.settled >= f64::from(SETTLE_US) - 0.5 {
+            let (near, layout) = (self.agreement(0), self.agreement(1));
+            if near > 0.0 || layout > 0.0 {
+                self.near = near >= layout;
+            }
+        }
+        let keep = (-period / f64::from(MEMORY_US)).exp();
+        for c in self.counts.iter_mut().flatten().flatten() {
+            *c *= keep;
+        }
+    }
 }
 
 const ORACLE_BINS: usize = crate::readout::field::BINS;
@@ -466,6 +514,11 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
         let fields = [field(tau_a_us), field(slow_tau)];
         let twins = crate::readout::calibrated::has_twins(&layout);
+        let stride = OracleStrideChoice {
+            counts: [[[0.0; 2]; crate::readout::field::REGIONS]; 2],
+            near: crate::readout::calibrated::has_near(&layout),
+            settled: 0.0,
+        };
         Self {
             p,
             layout,
@@ -482,6 +535,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             last: None,
             last_event: 0.0,
             twins,
+            stride,
             samples: 0,
         }
     }
@@ -548,6 +602,15 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         } else {
             zero
         };
+        // The near units' FAC pixels, one pixel away (when the stride is above 1).
+        let near_at = |slot: u8, dx: i32| {
+            if s > 1 && mask & (1 << slot) != 0 {
+                self.traces_at(nb(dx), t)
+            } else {
+                zero
+            }
+        };
+        let (near_lr, near_rl) = (near_at(0, -1), near_at(1, 1));
         let slow_onset = was_on != on
             || own_slow_now
                 < self.p.w_fac
@@ -577,21 +640,45 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             }
             Some((-tau * ratio.ln() * 1e-6, positive))
         };
-        let decoded = decode(lr.0, rl.0, own, self.p.tau_fac)
-            .map(|d| (d, 0))
-            .or_else(|| {
-                if !slow_onset || own_slow >= 8.0 || own >= self.p.w_fac + 0.1 {
-                    None
-                } else {
-                    decode(lr.1, rl.1, own_slow, self.tau_slow).map(|d| (d, 1))
+        let decode_stride = |lr: (f64, f64), rl: (f64, f64)| {
+            decode(lr.0, rl.0, own, self.p.tau_fac)
+                .map(|d| (d, 0))
+                .or_else(|| {
+                    if !slow_onset || own_slow >= 8.0 || own >= self.p.w_fac + 0.1 {
+                        None
+                    } else {
+                        decode(lr.1, rl.1, own_slow, self.tau_slow).map(|d| (d, 1))
+                    }
+                })
+        };
+        let far = decode_stride(lr, rl);
+        let near = decode_stride(near_lr, near_rl);
+        let [fast_field, _] = &self.fields;
+        let region = fast_field.region_index(x, y);
+        for (k, decoded) in [near, far].into_iter().enumerate() {
+            if let Some(((_, positive), 0)) = decoded {
+                if let Some(c) = self
+                    .stride
+                    .counts
+                    .get_mut(k)
+                    .and_then(|r| r.get_mut(region))
+                    .and_then(|c| c.get_mut(usize::from(positive)))
+                {
+                    *c += 1.0;
                 }
-            });
+            }
+        }
+        let (decoded, stride) = if self.stride.near {
+            (near, 1.0)
+        } else {
+            (far, f64::from(self.layout.stride()))
+        };
         let Some(((dt_s, positive), pop)) = decoded else {
             return;
         };
         let dx = f64::from(x) - self.cx;
         let g = self.focal + dx * dx / self.focal;
-        let w = f64::from(self.layout.stride()) / (dt_s * g);
+        let w = stride / (dt_s * g);
         if let Some(field) = self.fields.get_mut(pop) {
             field.add(x, y, if positive { w } else { -w });
             self.samples += 1;
@@ -614,6 +701,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
                     - 0.5 * self.period;
             let refresh =
                 (crate::readout::calibrated::REFRESH_US / (self.period as u32).max(1)).max(1);
+            self.stride.age(self.period);
             if self.phase == 0 {
                 self.last = self.estimate();
             }
@@ -1326,13 +1414,18 @@ impl OracleField {
         (usize::from(dx >= 0.0), b, usize::from(dy >= 0.0), r)
     }
 
+    /// Index of the region of a pixel (as [`crate::readout::field::FieldGeometry::region`]).
+    fn region_index(&self, x: u16, y: u16) -> usize {
+        let (side, b, v, r) = self.region(x, y);
+        ((side * COLS + b) * 2 + v) * ROWS + r
+    }
+
     /// One decoded rate (rad/s, signed) at pixel `(x, y)`.
     pub fn add(&mut self, x: u16, y: u16, w: f64) {
         let (lo, hi) = (0.01f64.ln(), 20.0f64.ln());
         let bin = (((w.abs().ln() - lo) / ((hi - lo) / ORACLE_BINS as f64)).floor())
             .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize;
-        let (side, b, v, r) = self.region(x, y);
-        let idx = ((side * COLS + b) * 2 + v) * ROWS + r;
+        let idx = self.region_index(x, y);
         if let Some(bin) = self
             .hist
             .get_mut(idx)

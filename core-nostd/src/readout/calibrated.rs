@@ -26,6 +26,15 @@
 //! add the slow edges without weighing in where the fast ones see the edge (their longer memory
 //! blurs accelerations). Slow traces near saturation (own trace >= 8) are not decoded.
 //!
+//! # Near units
+//! Each TRG event is also decoded as if its FAC pixel were one pixel away (the same units with
+//! stride 1, from the same FAC traces: no state of their own; the network hands their drives
+//! over, [`NetSink::NEAR`]). Across one pixel an edge takes half as long, so they answer sooner
+//! after the motion changes and time edges half as fast; where onsets do not mark edges
+//! (smooth textures) their decodes take either sign. They are decoded instead of the layout's
+//! units while their decodes agree in sign at least as much (see
+//! [`stride_choice`](super::stride_choice)).
+//!
 //! # From bursts to one rate
 //! Decoded rates go to the [`field`](super::field) estimator: regions mirrored about the
 //! principal point cancel forward translation, pitch and roll; the rotation must hold in
@@ -35,6 +44,7 @@ use fixed::types::{I16F16, U16F16};
 
 use super::field::{Field, FieldSettings, Population};
 use super::shared::{field_over, min_burst_drive, OutputGate, RateDecoder};
+use super::stride_choice::{Stride, StrideChoice};
 use super::Readout;
 use crate::layout::Layout;
 use crate::log2::log2_q16;
@@ -92,6 +102,26 @@ pub fn has_twins<L: Layout>(layout: &L) -> bool {
     2 * with_both >= with_units
 }
 
+/// Whether the layout has near units: its stride is above 1 and, for at least half of its
+/// units, the pixel one pixel from the TRG pixel towards the FAC pixel has state (a cell).
+pub fn has_near<L: Layout>(layout: &L) -> bool {
+    if layout.stride() < 2 {
+        return false;
+    }
+    let (mut units, mut near) = (0usize, 0usize);
+    for c in 0..layout.cell_count() {
+        let mask = layout.units(c);
+        let (x, y) = layout.pixel(c);
+        for (slot, dx) in [(0u8, -1i32), (1, 1)] {
+            if mask & (1 << slot) != 0 {
+                units += 1;
+                near += usize::from(layout.neighbor(x, y, c, dx).is_some());
+            }
+        }
+    }
+    2 * near >= units && units > 0
+}
+
 /// Settings of the calibrated readout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Calibration {
@@ -140,6 +170,8 @@ pub struct Calibrated {
     slow_scene_own: Trace,
     /// Warm-up and refresh of the output.
     gate: OutputGate,
+    /// Whether the near units or the layout's are decoded.
+    stride: StrideChoice,
     /// Decoded bursts so far.
     pub samples: u64,
     /// Of which from the slow units.
@@ -160,18 +192,20 @@ impl Calibrated {
         if !has_twins(layout) {
             field.choose_by_decode_rate();
         }
+        let log2_tau = [
+            log2_q16(u64::from(p.tau_fac_us), 0),
+            log2_q16(u64::from(TAU_SLOW_US), 0),
+        ];
         Self {
             cal,
             field,
-            log2_tau: [
-                log2_q16(u64::from(p.tau_fac_us), 0),
-                log2_q16(u64::from(TAU_SLOW_US), 0),
-            ],
+            log2_tau,
             rates: RateDecoder::new(layout, cal.focal_px, cal.cx),
             w_trg: p.w_trg.to_bits(),
             min_drive: min_burst_drive(kernel),
             slow_scene_own: Trace::saturating_from_num(p.w_fac).saturating_add(SLOW_SCENE_MARGIN),
             gate: OutputGate::new(cal.period_us, WARMUP_US),
+            stride: StrideChoice::new(has_near(layout)),
             samples: 0,
             slow_samples: 0,
         }
@@ -196,44 +230,73 @@ impl Calibrated {
         let l = log2_q16(u64::from(drive.to_bits()), 0).saturating_sub(log2_q16(denom, 0));
         RateDecoder::log2_dt_s(l, log2_tau)
     }
+
+    /// `log2 dt` (Q16.16, s), direction (`true`: right-to-left) and population of a trigger's
+    /// burst, from the drives of one stride: the paper's units', else the slow units'.
+    fn decode(
+        &self,
+        t: &Trigger,
+        drive: [Trace; 2],
+        slow_drive: [Trace; 2],
+    ) -> Option<(i32, bool, Population)> {
+        let [tau_fast, tau_slow] = self.log2_tau;
+        let (fast, positive) = stronger(drive);
+        if let Some(dt) = self.decode_dt(fast, t.own_fac, tau_fast) {
+            return Some((dt, positive, Population::Fast));
+        }
+        if t.own_slow >= SLOW_TRACE_LIMIT || t.own_fac >= self.slow_scene_own {
+            return None;
+        }
+        let (slow, positive) = stronger(slow_drive);
+        let dt = self.decode_dt(slow, t.own_slow, tau_slow)?;
+        Some((dt, positive, Population::Slow))
+    }
+}
+
+/// The stronger of a pixel's two units (drives `[left-to-right, right-to-left]`) and whether it
+/// faces right-to-left, if it clearly dominates; else the pixel's two neighbours saw edges
+/// about as recently and the direction is ambiguous: no drive.
+fn stronger([lr, rl]: [Trace; 2]) -> (Trace, bool) {
+    let (win, lose, positive) = if rl > lr {
+        (rl, lr, true)
+    } else {
+        (lr, rl, false)
+    };
+    if lose.to_bits() > win.to_bits() >> DOMINANCE_LOG2 {
+        (Trace::ZERO, positive)
+    } else {
+        (win, positive)
+    }
 }
 
 impl NetSink for Calibrated {
     const SPIKES: bool = false;
     const SLOW: bool = true;
+    const NEAR: bool = true;
 
     fn trigger(&mut self, t: &Trigger) {
-        // The stronger unit, if it clearly dominates (else the pixel's two neighbours saw
-        // edges about as recently and the direction is ambiguous: no decode).
-        let stronger = |[lr, rl]: [Trace; 2]| {
-            let (win, lose, positive) = if rl > lr {
-                (rl, lr, true)
-            } else {
-                (lr, rl, false)
-            };
-            if lose.to_bits() > win.to_bits() >> DOMINANCE_LOG2 {
-                (Trace::ZERO, positive)
-            } else {
-                (win, positive)
+        let far = self.decode(t, t.drive, t.slow_drive);
+        let near = self.decode(t, t.near_drive, t.near_slow_drive);
+        let region = self.field.geometry().region(t.x, t.y);
+        for (stride, decoded) in [(Stride::Near, near), (Stride::Layout, far)] {
+            if let Some((_, positive, Population::Fast)) = decoded {
+                self.stride.add(stride, region, positive);
             }
+        }
+        let (decoded, stride) = match self.stride.choice() {
+            Stride::Near => (near, Stride::Near),
+            Stride::Layout => (far, Stride::Layout),
         };
-        let (drive, positive) = stronger(t.drive);
-        let [tau_fast, tau_slow] = self.log2_tau;
-        let (dt, positive, pop) = match self.decode_dt(drive, t.own_fac, tau_fast) {
-            Some(dt) => (dt, positive, Population::Fast),
-            None => {
-                if t.own_slow >= SLOW_TRACE_LIMIT || t.own_fac >= self.slow_scene_own {
-                    return;
-                }
-                let (drive, positive) = stronger(t.slow_drive);
-                let Some(dt) = self.decode_dt(drive, t.own_slow, tau_slow) else {
-                    return;
-                };
-                self.slow_samples += 1;
-                (dt, positive, Population::Slow)
-            }
+        let Some((dt, positive, pop)) = decoded else {
+            return;
         };
-        let l2 = self.rates.rotation_rate(dt, t.x);
+        let l2 = match stride {
+            Stride::Near => self.rates.near_rotation_rate(dt, t.x),
+            Stride::Layout => self.rates.rotation_rate(dt, t.x),
+        };
+        if pop == Population::Slow {
+            self.slow_samples += 1;
+        }
         self.field.add(pop, t.x, t.y, l2, positive);
         self.samples += 1;
     }
@@ -241,6 +304,7 @@ impl NetSink for Calibrated {
 
 impl Readout for Calibrated {
     fn output(&mut self, _t_us: u32) -> (I16F16, u8) {
+        self.stride.age(self.cal.period_us);
         self.gate.output(&mut self.field)
     }
 }

@@ -6,13 +6,15 @@
 //!   through the same field estimator.
 //! - [`normalized`]: the paper's readout, a leaky integrator of right-to-left minus
 //!   left-to-right spikes; divided by its maximum over the recording afterwards (host only).
-//! - [`field`], [`shared`]: the rotation estimator and the pieces the rad/s readouts share.
+//! - [`field`], [`shared`]: the rotation estimator and the pieces the rad/s readouts share;
+//!   [`stride_choice`]: whether the calibrated readout decodes the near units or the layout's.
 
 pub mod calibrated;
 pub mod field;
 pub mod normalized;
 pub mod shared;
 pub mod spikes;
+pub mod stride_choice;
 
 use fixed::types::I16F16;
 

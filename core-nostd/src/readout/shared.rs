@@ -42,6 +42,18 @@ pub fn min_burst_drive(kernel: &Kernel) -> Trace {
     Trace::from_bits(lo)
 }
 
+/// `log2` of the window (s) of a unit with FAC time constant `2^log2_tau` µs: the longest
+/// crossing it times, where the drive of an edge on a pixel with one onset falls to the smallest
+/// that bursts (`tau_F ln(w_T w_F / min_drive)`: ~54 ms for the paper's units).
+pub fn window_log2_s(kernel: &Kernel, log2_tau: i32) -> i32 {
+    let w_trg = kernel.params().w_trg;
+    let w_fac = kernel.fac_input(Trace::ZERO);
+    let l = log2_q16(u64::from(min_burst_drive(kernel).to_bits()), 27)
+        .saturating_sub(log2_q16(u64::from(w_trg.to_bits()), 16))
+        .saturating_sub(log2_q16(u64::from(w_fac.to_bits()), 27));
+    RateDecoder::log2_dt_s(l, log2_tau).unwrap_or(i32::MIN)
+}
+
 /// From the time an edge took to cross the stride to the rotation it implies, at a column.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RateDecoder {
@@ -96,6 +108,13 @@ impl RateDecoder {
         self.log2_stride
             .saturating_sub(log2_dt_s)
             .saturating_sub(log2_q16(g, 16))
+    }
+
+    /// `log2 |w|` (Q16.16) of a crossing of one pixel (the near units') in `2^log2_dt_s` s at
+    /// column `x`.
+    pub fn near_rotation_rate(&self, log2_dt_s: i32, x: u16) -> i32 {
+        self.rotation_rate(log2_dt_s, x)
+            .saturating_sub(self.log2_stride)
     }
 }
 

@@ -73,7 +73,9 @@ use fixed::types::I16F16;
 
 use super::calibrated::{Calibration, SLOW_TAU_A_US};
 use super::field::{Field, Population};
-use super::shared::{field_over, min_burst_drive, OutputGate, RateDecoder, LOG2_1E6, WARMUP_US};
+use super::shared::{
+    field_over, min_burst_drive, window_log2_s, OutputGate, RateDecoder, LOG2_1E6, WARMUP_US,
+};
 use super::Readout;
 use crate::layout::{Dir, Layout};
 use crate::log2::{exp2_q16, log2_q16};
@@ -569,15 +571,10 @@ struct SlowRule {
 impl SlowRule {
     /// The rule for slow units beside the paper's units of `fast`.
     fn beside(fast: &Kernel) -> Self {
-        let p = fast.params();
-        let w_fac = fast.fac_input(Trace::ZERO);
-        let l = log2_q16(u64::from(min_burst_drive(fast).to_bits()), 27)
-            .saturating_sub(log2_q16(u64::from(p.w_trg.to_bits()), 16))
-            .saturating_sub(log2_q16(u64::from(w_fac.to_bits()), 27));
+        let tau_us = fast.params().tau_fac_us;
         Self {
-            busy_us: (u64::from(p.tau_fac_us) * 23_026 / 10_000) as u32,
-            reach_log2_s: RateDecoder::log2_dt_s(l, log2_q16(u64::from(p.tau_fac_us), 0))
-                .unwrap_or(i32::MIN),
+            busy_us: (u64::from(tau_us) * 23_026 / 10_000) as u32,
+            reach_log2_s: window_log2_s(fast, log2_q16(u64::from(tau_us), 0)),
         }
     }
 }

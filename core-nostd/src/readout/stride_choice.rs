@@ -1,0 +1,198 @@
+//! Which units the calibrated readout decodes: the near units (FAC pixel one pixel away) or the
+//! layout's (the paper's stride 2).
+//!
+//! # Why near units
+//! A burst times an edge across its stride. Across one pixel the crossing takes half as long as
+//! across two, so the near units answer sooner after the motion changes (a reversal, the start
+//! of a turn: a perfect stride-2 timer of the image motion at the principal point, with the
+//! slow units' 270 ms reach, still misses by 7-11 % of peak on the pure-rotation scenes for that
+//! reason alone, a stride-1 timer by 4-7 %) and time edges half as fast within the same window.
+//!
+//! # When not
+//! That holds while a pixel's onset marks the edge's passage to within a fraction of the
+//! crossing time: true for sharp edges (buildings, windows, poles), not for smooth textures (no
+//! sharp edges). There a pixel reports the brightness once it has moved one contrast step from a
+//! reference level of its own, so neighbouring pixels often fire on different features; the
+//! decodes spread widely and many take the wrong sign, the more so the shorter the stride (on
+//! `dev01`, smooth value noise, the output reads 0.78 of the truth at stride 2 and 0.45 at
+//! stride 1, because the field's signed median sinks with the wrong-sign share).
+//!
+//! # The rule
+//! The rule the field uses between its populations ([`super::field::RANDOM_AGREEMENT`]):
+//! the decodes that agree more in sign, per second, within the field's regions, answer. Here
+//! the paper's units' decodes of both strides count, per region and sign, leaky over
+//! [`MEMORY_US`]; the near units are decoded while their agreement `Σ max(0, (P - N)² / (P + N)
+//! - RANDOM_AGREEMENT)` (P, N: decodes per sign in a region) is at least the layout's, else the
+//! layout's units. Over the first [`SETTLE_US`], and while neither stride agrees at all, the
+//! choice stays as it was (at the start: near, on layouts that have near units,
+//! [`super::calibrated::has_near`]).
+
+use super::field::{RANDOM_AGREEMENT, REGIONS};
+use crate::exp_table::{scale_q31, ExpDecay};
+
+/// Memory of the sign counts (µs).
+pub const MEMORY_US: u32 = 1_000_000;
+
+/// Time (µs) from the start before the rule changes the choice: each pixel's first onsets
+/// after the start come from the level the sensor started with, not from an edge.
+pub const SETTLE_US: u32 = MEMORY_US / 4;
+
+/// Decay of the counts.
+static MEMORY: ExpDecay = ExpDecay::new(MEMORY_US);
+
+/// Which units to decode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stride {
+    /// The near units (FAC pixel one pixel away).
+    Near = 0,
+    /// The layout's units (its stride).
+    Layout = 1,
+}
+
+/// The leaky sign counts and the current choice.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StrideChoice {
+    /// Decodes `[stride][region][sign]` (sign 1 = positive), leaky, Q8 samples.
+    counts_q8: [[[u32; 2]; REGIONS]; 2],
+    /// The current choice.
+    choice: Stride,
+    /// Time since the start (µs, up to [`SETTLE_US`]).
+    settled_us: u32,
+}
+
+impl StrideChoice {
+    /// No decodes yet: the near units decode if the layout has them (`near`), else the
+    /// layout's, for good.
+    pub const fn new(near: bool) -> Self {
+        Self {
+            counts_q8: [[[0; 2]; REGIONS]; 2],
+            choice: if near { Stride::Near } else { Stride::Layout },
+            settled_us: 0,
+        }
+    }
+
+    /// The units to decode now.
+    pub fn choice(&self) -> Stride {
+        self.choice
+    }
+
+    /// One decode of the paper's units of `stride` in field region `region`, with its sign.
+    pub fn add(&mut self, stride: Stride, region: usize, positive: bool) {
+        if let Some(c) = self
+            .counts_q8
+            .get_mut(stride as usize)
+            .and_then(|r| r.get_mut(region))
+            .and_then(|s| s.get_mut(usize::from(positive)))
+        {
+            *c = c.saturating_add(1 << 8);
+        }
+    }
+
+    /// Sign agreement of a stride's decodes: `Σ max(0, (P - N)² / (P + N) - RANDOM_AGREEMENT)`
+    /// over the regions, in Q8 samples.
+    fn agreement_q8(&self, stride: Stride) -> u64 {
+        let random = u64::from(RANDOM_AGREEMENT) << 8;
+        self.counts_q8.get(stride as usize).map_or(0, |regions| {
+            regions
+                .iter()
+                .map(|&[n, p]| {
+                    let (n, p) = (u64::from(n), u64::from(p));
+                    let d = n.abs_diff(p);
+                    d.saturating_mul(d)
+                        .checked_div(n + p)
+                        .unwrap_or(0)
+                        .saturating_sub(random)
+                })
+                .sum()
+        })
+    }
+
+    /// `dt_us` of time passed (once per output): the choice follows the counts, which decay.
+    pub fn age(&mut self, dt_us: u32) {
+        self.settled_us = self.settled_us.saturating_add(dt_us).min(SETTLE_US);
+        if self.settled_us >= SETTLE_US {
+            let near = self.agreement_q8(Stride::Near);
+            let layout = self.agreement_q8(Stride::Layout);
+            if near > 0 || layout > 0 {
+                self.choice = if near >= layout {
+                    Stride::Near
+                } else {
+                    Stride::Layout
+                };
+            }
+        }
+        let keep = MEMORY.decay_bits(dt_us);
+        for c in self.counts_q8.iter_mut().flatten().flatten() {
+            *c = scale_q31(*c, keep);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `n` decodes of `stride` in `region`, `positive` of them positive.
+    fn decodes(c: &mut StrideChoice, stride: Stride, region: usize, n: u32, positive: u32) {
+        for k in 0..n {
+            c.add(stride, region, k < positive);
+        }
+    }
+
+    #[test]
+    fn the_stride_whose_decodes_agree_more_answers() {
+        let mut c = StrideChoice::new(true);
+        assert_eq!(c.choice(), Stride::Near);
+        // Sharp edges: near decodes as many and as one-signed as the layout's.
+        for r in 0..8 {
+            decodes(&mut c, Stride::Near, r, 100, 95);
+            decodes(&mut c, Stride::Layout, r, 100, 95);
+        }
+        c.age(SETTLE_US);
+        assert_eq!(c.choice(), Stride::Near);
+        // A smooth texture: near decodes take either sign.
+        let mut c = StrideChoice::new(true);
+        for r in 0..8 {
+            decodes(&mut c, Stride::Near, r, 100, 60);
+            decodes(&mut c, Stride::Layout, r, 100, 85);
+        }
+        c.age(SETTLE_US);
+        assert_eq!(c.choice(), Stride::Layout);
+    }
+
+    #[test]
+    fn no_change_before_settling_or_without_agreement() {
+        let mut c = StrideChoice::new(true);
+        decodes(&mut c, Stride::Layout, 3, 1_000, 1_000);
+        c.age(SETTLE_US - 1);
+        assert_eq!(c.choice(), Stride::Near);
+        c.age(1);
+        assert_eq!(c.choice(), Stride::Layout);
+        // Random signs on both sides: nothing to go by, the choice stays.
+        let mut c = StrideChoice::new(true);
+        decodes(&mut c, Stride::Near, 0, 100, 50);
+        decodes(&mut c, Stride::Layout, 0, 100, 50);
+        c.age(SETTLE_US);
+        assert_eq!(c.choice(), Stride::Near);
+        assert_eq!(StrideChoice::new(false).choice(), Stride::Layout);
+    }
+
+    #[test]
+    fn counts_forget_over_the_memory() {
+        let mut c = StrideChoice::new(true);
+        decodes(&mut c, Stride::Near, 0, 1_000, 1_000);
+        for _ in 0..3_000 {
+            c.age(1_000);
+        }
+        let left = c.counts_q8[0][0][1] >> 8;
+        // e^-3 of 1000.
+        assert!((45..=55).contains(&left), "{left}");
+    }
+
+    #[test]
+    fn out_of_range_regions_are_ignored() {
+        let mut c = StrideChoice::new(true);
+        c.add(Stride::Near, REGIONS, true);
+        assert_eq!(c.agreement_q8(Stride::Near), 0);
+    }
+}
