@@ -217,7 +217,8 @@ pub struct Trigger {
     pub own_fac: Trace,
     /// The same for the slow units (FAC time constant [`TAU_SLOW_US`]): drives `w_T · I_S(t⁻)`
     /// of the pixel's two slow units and its own slow trace after the event. Zero unless the
-    /// sink asks for them ([`NetSink::SLOW`]).
+    /// sink asks for them ([`NetSink::SLOW`]). Of the near slow units instead when the sink
+    /// says so ([`NetSink::slow_near`]).
     pub slow_drive: [Trace; 2],
     /// The pixel's own slow FAC trace just after this event (see `slow_drive`).
     pub own_slow: Trace,
@@ -225,8 +226,6 @@ pub struct Trigger {
     /// instead of the layout's stride. Zero unless the sink asks for them ([`NetSink::NEAR`])
     /// and the stride is above 1.
     pub near_drive: [Trace; 2],
-    /// The same for the slow units (zero unless `slow_drive` and `near_drive` are both kept).
-    pub near_slow_drive: [Trace; 2],
 }
 
 /// Most spikes the network hands a sink at once ([`NetSink::spikes`]).
@@ -244,6 +243,12 @@ pub trait NetSink {
     /// away). When `false` the network reads only the layout's stride (the near drives cost
     /// two more neighbour reads per onset).
     const NEAR: bool = false;
+    /// With both [`NetSink::NEAR`] and [`NetSink::SLOW`]: whether the slow drives the sink
+    /// wants for the next event are the near units' (else the layout's). The slow traces are
+    /// read at one distance only.
+    fn slow_near(&self) -> bool {
+        false
+    }
     /// One triggering event.
     fn trigger(&mut self, _t: &Trigger) {}
     /// One spike (spikes of one unit arrive in time order; a spike at `t` arrives before any
@@ -738,16 +743,28 @@ impl<'a, L: Layout> Network<'a, L> {
         }
         let mask = self.layout.units_at(ev.x, ev.y, c);
         let stride = i32::from(self.layout.stride());
-        let far = self.neighbour_traces::<S>(ev, c, mask, stride);
-        let near = if S::NEAR && stride > 1 {
-            self.neighbour_traces::<S>(ev, c, mask, 1)
+        let near_units = S::NEAR && stride > 1;
+        let slow_near = near_units && sink.slow_near();
+        let far = self.neighbour_traces::<S>(ev, c, mask, stride, !slow_near);
+        let near = if near_units {
+            self.neighbour_traces::<S>(ev, c, mask, 1, slow_near)
         } else {
             Neighbours::default()
         };
         if self.spiking::<S>() {
             self.units_to_event::<S>(c, &own, ev.t_us, sink);
         }
-        self.trigger_record(c, ev, mask, &own, slow_onset, [far, near], sink);
+        let slow = if slow_near { near.slow } else { far.slow };
+        self.trigger_record(
+            c,
+            ev,
+            mask,
+            &own,
+            slow_onset,
+            [far.fac, near.fac],
+            slow,
+            sink,
+        );
         if self.spiking::<S>() {
             self.unit_update(c, mask, &own, ev.t_us, far.fac, sink);
         }
@@ -799,9 +816,9 @@ impl<'a, L: Layout> Network<'a, L> {
         Some(was_on != on || own.slow < self.slow_onset_level)
     }
 
-    /// The FAC traces (bits, and slow traces when the sink wants them) of the FAC pixels of
-    /// the units in `mask` at distance `s`, at the event time: what the units' TRG input
-    /// multiplies.
+    /// The FAC traces (bits, and slow traces when the sink wants them and `slow`) of the FAC
+    /// pixels of the units in `mask` at distance `s`, at the event time: what the units' TRG
+    /// input multiplies.
     #[inline]
     fn neighbour_traces<S: NetSink>(
         &self,
@@ -809,6 +826,7 @@ impl<'a, L: Layout> Network<'a, L> {
         c: usize,
         mask: UnitMask,
         s: i32,
+        slow: bool,
     ) -> Neighbours {
         let mut nbs = Neighbours::default();
         for (slot, dx) in [(0usize, -s), (1, s)] {
@@ -819,7 +837,7 @@ impl<'a, L: Layout> Network<'a, L> {
             if let Some(f) = nbs.fac.get_mut(slot) {
                 *f = self.fac_at(nb, ev.t_us);
             }
-            if self.keeps_slow::<S>() {
+            if slow && self.keeps_slow::<S>() {
                 if let Some(f) = nbs.slow.get_mut(slot) {
                     *f = self.slow_at(nb, ev.t_us);
                 }
@@ -839,15 +857,15 @@ impl<'a, L: Layout> Network<'a, L> {
         mask: UnitMask,
         own: &OwnTraces,
         slow_onset: bool,
-        [far, near]: [Neighbours; 2],
+        [far, near]: [[u32; 2]; 2],
+        mut slow: [Trace; 2],
         sink: &mut S,
     ) {
         let kernel = self.kernel;
         let wide = self.wide();
         let keeps_slow = self.keeps_slow::<S>();
-        let drives = |nbs: Neighbours| nbs.fac.map(|f| kernel.drive(self.fac_trace(f)));
+        let drives = |fac: [u32; 2]| fac.map(|f| kernel.drive(self.fac_trace(f)));
         let (drive, near_drive) = (drives(far), drives(near));
-        let (mut slow, mut near_slow) = (far.slow, near.slow);
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };
@@ -874,7 +892,6 @@ impl<'a, L: Layout> Network<'a, L> {
                 cell.aux = own.slow.to_bits();
                 // Not a new edge for the slow units: no slow drive, nothing to decode.
                 slow = [Trace::ZERO; 2];
-                near_slow = [Trace::ZERO; 2];
                 Trace::ZERO
             }
         } else {
@@ -890,7 +907,6 @@ impl<'a, L: Layout> Network<'a, L> {
                 slow_drive: slow.map(|i| kernel.drive(i)),
                 own_slow,
                 near_drive,
-                near_slow_drive: near_slow.map(|i| kernel.drive(i)),
             });
         }
     }

@@ -455,6 +455,8 @@ struct OracleStrideChoice {
     near: bool,
     /// Time since the start (µs).
     settled: f64,
+    /// Outputs since the last look.
+    outputs: u32,
 }
 
 impl OracleStrideChoice {
@@ -474,10 +476,17 @@ impl OracleStrideChoice {
         })
     }
 
-    /// One output period of `period` µs.
+    /// One output period of `period` µs (the counts are looked at every
+    /// [`crate::readout::stride_choice::LOOK_EVERY`] outputs, as in the fixed-point readout).
     fn age(&mut self, period: f64) {
-        use crate::readout::stride_choice::{MEMORY_US, SETTLE_US};
+        use crate::readout::stride_choice::{LOOK_EVERY, MEMORY_US, SETTLE_US};
         self.settled += period;
+        self.outputs += 1;
+        if self.outputs < LOOK_EVERY {
+            return;
+        }
+        self.outputs = 0;
+        let period = period * f64::from(LOOK_EVERY);
         if self.settled >= f64::from(SETTLE_US) - 0.5 {
             let (near, layout) = (self.agreement(0), self.agreement(1));
             if near > 0.0 || layout > 0.0 {
@@ -518,6 +527,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             counts: [[[0.0; 2]; crate::readout::field::REGIONS]; 2],
             near: crate::readout::calibrated::has_near(&layout),
             settled: 0.0,
+            outputs: 0,
         };
         Self {
             p,

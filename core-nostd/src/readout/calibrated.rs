@@ -231,25 +231,25 @@ impl Calibrated {
         RateDecoder::log2_dt_s(l, log2_tau)
     }
 
-    /// `log2 dt` (Q16.16, s), direction (`true`: right-to-left) and population of a trigger's
-    /// burst, from the drives of one stride: the paper's units', else the slow units'.
-    fn decode(
-        &self,
-        t: &Trigger,
-        drive: [Trace; 2],
-        slow_drive: [Trace; 2],
-    ) -> Option<(i32, bool, Population)> {
-        let [tau_fast, tau_slow] = self.log2_tau;
+    /// The paper's units' drive (of the stronger unit) and direction (`true`: right-to-left),
+    /// if it bursts and codes a crossing (a drive below `w_T` times the pixel's own trace):
+    /// what [`Calibrated::decode_dt`] decodes, without the logarithms.
+    fn fast_burst(&self, t: &Trigger, drive: [Trace; 2]) -> Option<(Trace, bool)> {
         let (fast, positive) = stronger(drive);
-        if let Some(dt) = self.decode_dt(fast, t.own_fac, tau_fast) {
-            return Some((dt, positive, Population::Fast));
-        }
+        let own = (u64::from(self.w_trg) * u64::from(t.own_fac.to_bits())) >> 16;
+        (fast >= self.min_drive && u64::from(fast.to_bits()) < own).then_some((fast, positive))
+    }
+
+    /// The same for the slow units (`t.slow_drive`, of the chosen stride), where the pixel's
+    /// scene is slow.
+    fn decode_slow(&self, t: &Trigger) -> Option<(i32, bool)> {
         if t.own_slow >= SLOW_TRACE_LIMIT || t.own_fac >= self.slow_scene_own {
             return None;
         }
-        let (slow, positive) = stronger(slow_drive);
-        let dt = self.decode_dt(slow, t.own_slow, tau_slow)?;
-        Some((dt, positive, Population::Slow))
+        let (slow, positive) = stronger(t.slow_drive);
+        let [_, tau_slow] = self.log2_tau;
+        self.decode_dt(slow, t.own_slow, tau_slow)
+            .map(|dt| (dt, positive))
     }
 }
 
@@ -274,30 +274,44 @@ impl NetSink for Calibrated {
     const SLOW: bool = true;
     const NEAR: bool = true;
 
+    fn slow_near(&self) -> bool {
+        self.stride.choice() == Stride::Near
+    }
+
     fn trigger(&mut self, t: &Trigger) {
-        let far = self.decode(t, t.drive, t.slow_drive);
-        let near = self.decode(t, t.near_drive, t.near_slow_drive);
+        let far = self.fast_burst(t, t.drive);
+        let near = self.fast_burst(t, t.near_drive);
         let region = self.field.geometry().region(t.x, t.y);
-        for (stride, decoded) in [(Stride::Near, near), (Stride::Layout, far)] {
-            if let Some((_, positive, Population::Fast)) = decoded {
+        for (stride, burst) in [(Stride::Near, near), (Stride::Layout, far)] {
+            if let Some((_, positive)) = burst {
                 self.stride.add(stride, region, positive);
             }
         }
-        let (decoded, stride) = match self.stride.choice() {
-            Stride::Near => (near, Stride::Near),
-            Stride::Layout => (far, Stride::Layout),
+        let stride = self.stride.choice();
+        let fast = match stride {
+            Stride::Near => near,
+            Stride::Layout => far,
         };
-        let Some((dt, positive, pop)) = decoded else {
-            return;
+        let [tau_fast, _] = self.log2_tau;
+        let fast = fast.and_then(|(drive, positive)| {
+            self.decode_dt(drive, t.own_fac, tau_fast)
+                .map(|dt| (dt, positive))
+        });
+        let (dt, positive, pop) = match fast {
+            Some((dt, positive)) => (dt, positive, Population::Fast),
+            None => {
+                let Some((dt, positive)) = self.decode_slow(t) else {
+                    return;
+                };
+                self.slow_samples += 1;
+                (dt, positive, Population::Slow)
+            }
         };
         let l2 = match stride {
             Stride::Near => self.rates.near_rotation_rate(dt, t.x),
             Stride::Layout => self.rates.rotation_rate(dt, t.x),
         };
-        if pop == Population::Slow {
-            self.slow_samples += 1;
-        }
-        self.field.add(pop, t.x, t.y, l2, positive);
+        self.field.add_in(pop, region, l2, positive);
         self.samples += 1;
     }
 }

@@ -356,8 +356,14 @@ impl Field {
     /// the sign of `r`.
     #[inline]
     pub fn add(&mut self, pop: Population, x: u16, y: u16, log2_rate: i32, positive: bool) {
+        self.add_in(pop, self.geometry.region(x, y), log2_rate, positive);
+    }
+
+    /// [`Field::add`] for a pixel in region `region` ([`FieldGeometry::region`]; ignored if out
+    /// of range).
+    #[inline]
+    pub fn add_in(&mut self, pop: Population, region: usize, log2_rate: i32, positive: bool) {
         let bin = (log2_rate.saturating_sub(LOG2_LO) / BIN_W).clamp(0, BINS as i32 - 1) as usize;
-        let region = self.geometry.region(x, y);
         let w = self
             .weight
             .get(pop as usize)

@@ -37,6 +37,11 @@ pub const MEMORY_US: u32 = 1_000_000;
 /// after the start come from the level the sensor started with, not from an edge.
 pub const SETTLE_US: u32 = MEMORY_US / 4;
 
+/// Outputs between two looks at the counts (their decay is applied then, for the whole time
+/// since the last look): the choice needs no faster answer than its 1 s memory, and a look
+/// costs a division per region and stride.
+pub const LOOK_EVERY: u32 = 16;
+
 /// Decay of the counts.
 static MEMORY: ExpDecay = ExpDecay::new(MEMORY_US);
 
@@ -58,6 +63,9 @@ pub struct StrideChoice {
     choice: Stride,
     /// Time since the start (µs, up to [`SETTLE_US`]).
     settled_us: u32,
+    /// Outputs since the last look, and their time (µs).
+    outputs: u32,
+    since_look_us: u32,
 }
 
 impl StrideChoice {
@@ -68,6 +76,8 @@ impl StrideChoice {
             counts_q8: [[[0; 2]; REGIONS]; 2],
             choice: if near { Stride::Near } else { Stride::Layout },
             settled_us: 0,
+            outputs: 0,
+            since_look_us: 0,
         }
     }
 
@@ -107,9 +117,17 @@ impl StrideChoice {
         })
     }
 
-    /// `dt_us` of time passed (once per output): the choice follows the counts, which decay.
+    /// `dt_us` of time passed (once per output); every [`LOOK_EVERY`] outputs the choice
+    /// follows the counts, which decay.
     pub fn age(&mut self, dt_us: u32) {
         self.settled_us = self.settled_us.saturating_add(dt_us).min(SETTLE_US);
+        self.since_look_us = self.since_look_us.saturating_add(dt_us);
+        self.outputs += 1;
+        if self.outputs < LOOK_EVERY {
+            return;
+        }
+        let dt_us = core::mem::take(&mut self.since_look_us);
+        self.outputs = 0;
         if self.settled_us >= SETTLE_US {
             let near = self.agreement_q8(Stride::Near);
             let layout = self.agreement_q8(Stride::Layout);
@@ -132,6 +150,16 @@ impl StrideChoice {
 mod tests {
     use super::*;
 
+    /// Outputs of 1 ms over `us`, then enough more for a look.
+    fn look_after(c: &mut StrideChoice, us: u32) {
+        for _ in 0..us / 1_000 {
+            c.age(1_000);
+        }
+        while c.outputs != 0 {
+            c.age(0);
+        }
+    }
+
     /// `n` decodes of `stride` in `region`, `positive` of them positive.
     fn decodes(c: &mut StrideChoice, stride: Stride, region: usize, n: u32, positive: u32) {
         for k in 0..n {
@@ -148,7 +176,7 @@ mod tests {
             decodes(&mut c, Stride::Near, r, 100, 95);
             decodes(&mut c, Stride::Layout, r, 100, 95);
         }
-        c.age(SETTLE_US);
+        look_after(&mut c, SETTLE_US);
         assert_eq!(c.choice(), Stride::Near);
         // A smooth texture: near decodes take either sign.
         let mut c = StrideChoice::new(true);
@@ -156,7 +184,7 @@ mod tests {
             decodes(&mut c, Stride::Near, r, 100, 60);
             decodes(&mut c, Stride::Layout, r, 100, 85);
         }
-        c.age(SETTLE_US);
+        look_after(&mut c, SETTLE_US);
         assert_eq!(c.choice(), Stride::Layout);
     }
 
@@ -164,15 +192,15 @@ mod tests {
     fn no_change_before_settling_or_without_agreement() {
         let mut c = StrideChoice::new(true);
         decodes(&mut c, Stride::Layout, 3, 1_000, 1_000);
-        c.age(SETTLE_US - 1);
+        look_after(&mut c, SETTLE_US - 1_000);
         assert_eq!(c.choice(), Stride::Near);
-        c.age(1);
+        look_after(&mut c, 1_000);
         assert_eq!(c.choice(), Stride::Layout);
         // Random signs on both sides: nothing to go by, the choice stays.
         let mut c = StrideChoice::new(true);
         decodes(&mut c, Stride::Near, 0, 100, 50);
         decodes(&mut c, Stride::Layout, 0, 100, 50);
-        c.age(SETTLE_US);
+        look_after(&mut c, SETTLE_US);
         assert_eq!(c.choice(), Stride::Near);
         assert_eq!(StrideChoice::new(false).choice(), Stride::Layout);
     }
@@ -187,6 +215,18 @@ mod tests {
         let left = c.counts_q8[0][0][1] >> 8;
         // e^-3 of 1000.
         assert!((45..=55).contains(&left), "{left}");
+    }
+
+    #[test]
+    fn counts_decay_only_at_looks() {
+        let mut c = StrideChoice::new(true);
+        decodes(&mut c, Stride::Near, 0, 100, 100);
+        for _ in 0..LOOK_EVERY - 1 {
+            c.age(1_000);
+        }
+        assert_eq!(c.counts_q8[0][0][1], 100 << 8);
+        c.age(1_000);
+        assert!(c.counts_q8[0][0][1] < 100 << 8);
     }
 
     #[test]
