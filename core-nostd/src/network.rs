@@ -243,11 +243,10 @@ pub trait NetSink {
     /// away). When `false` the network reads only the layout's stride (the near drives cost
     /// two more neighbour reads per onset).
     const NEAR: bool = false;
-    /// With both [`NetSink::NEAR`] and [`NetSink::SLOW`]: whether the slow drives the sink
-    /// wants for the next event are the near units' (else the layout's). The slow traces are
-    /// read at one distance only.
-    fn slow_near(&self) -> bool {
-        false
+    /// With [`NetSink::NEAR`]: which FAC pixels to read for the next event, at row `y` (the
+    /// drives of those not read are zero).
+    fn reads(&self, _y: u16) -> Reads {
+        Reads::LAYOUT
     }
     /// One triggering event.
     fn trigger(&mut self, _t: &Trigger) {}
@@ -277,6 +276,27 @@ pub trait NetSink {
     /// A spike emitted ahead of the clock that an event has cancelled (the same [`Spike`] as
     /// given to [`NetSink::spike`]; the latest of a unit first).
     fn retract(&mut self, _s: Spike) {}
+}
+
+/// Which FAC pixels the network reads for one event of a sink with [`NetSink::NEAR`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Reads {
+    /// The layout's units' (at its stride).
+    pub layout: bool,
+    /// The near units' (one pixel away).
+    pub near: bool,
+    /// Whether the slow traces are read at the near units' FAC pixels (else at the layout's):
+    /// they are read at one distance only.
+    pub slow_near: bool,
+}
+
+impl Reads {
+    /// The layout's units only.
+    pub const LAYOUT: Self = Self {
+        layout: true,
+        near: false,
+        slow_near: false,
+    };
 }
 
 /// Any `FnMut(Spike)` is a spike sink.
@@ -743,14 +763,21 @@ impl<'a, L: Layout> Network<'a, L> {
         }
         let mask = self.layout.units_at(ev.x, ev.y, c);
         let stride = i32::from(self.layout.stride());
-        let near_units = S::NEAR && stride > 1;
-        let slow_near = near_units && sink.slow_near();
-        let far = self.neighbour_traces::<S>(ev, c, mask, stride, !slow_near);
-        let near = if near_units {
-            self.neighbour_traces::<S>(ev, c, mask, 1, slow_near)
+        let reads = if S::NEAR && stride > 1 {
+            sink.reads(ev.y)
         } else {
-            Neighbours::default()
+            Reads::LAYOUT
         };
+        let slow_near = reads.slow_near;
+        let far = self.neighbour_traces::<S>(
+            ev,
+            c,
+            mask,
+            stride,
+            reads.layout || self.spiking::<S>(),
+            !slow_near,
+        );
+        let near = self.neighbour_traces::<S>(ev, c, mask, 1, reads.near, slow_near);
         if self.spiking::<S>() {
             self.units_to_event::<S>(c, &own, ev.t_us, sink);
         }
@@ -816,26 +843,32 @@ impl<'a, L: Layout> Network<'a, L> {
         Some(was_on != on || own.slow < self.slow_onset_level)
     }
 
-    /// The FAC traces (bits, and slow traces when the sink wants them and `slow`) of the FAC
-    /// pixels of the units in `mask` at distance `s`, at the event time: what the units' TRG
-    /// input multiplies.
-    #[inline]
+    /// The FAC traces (bits, if `fac`) and slow traces (if the sink wants them and `slow`) of
+    /// the FAC pixels of the units in `mask` at distance `s`, at the event time: what the
+    /// units' TRG input multiplies (zero where not read).
+    #[inline(always)]
     fn neighbour_traces<S: NetSink>(
         &self,
         ev: Event,
         c: usize,
         mask: UnitMask,
         s: i32,
+        fac: bool,
         slow: bool,
     ) -> Neighbours {
         let mut nbs = Neighbours::default();
+        if !(fac || slow && self.keeps_slow::<S>()) {
+            return nbs;
+        }
         for (slot, dx) in [(0usize, -s), (1, s)] {
             if mask & (1 << slot) == 0 {
                 continue;
             }
             let nb = self.layout.neighbor(ev.x, ev.y, c, dx);
-            if let Some(f) = nbs.fac.get_mut(slot) {
-                *f = self.fac_at(nb, ev.t_us);
+            if fac {
+                if let Some(f) = nbs.fac.get_mut(slot) {
+                    *f = self.fac_at(nb, ev.t_us);
+                }
             }
             if slow && self.keeps_slow::<S>() {
                 if let Some(f) = nbs.slow.get_mut(slot) {

@@ -665,8 +665,9 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let near = decode_stride(near_lr, near_rl);
         let [fast_field, _] = &self.fields;
         let region = fast_field.region_index(x, y);
+        let counted = crate::readout::stride_choice::StrideChoice::counts_row(y);
         for (k, decoded) in [near, far].into_iter().enumerate() {
-            if let Some(((_, positive), 0)) = decoded {
+            if let (Some(((_, positive), 0)), true) = (decoded, counted) {
                 if let Some(c) = self
                     .stride
                     .counts

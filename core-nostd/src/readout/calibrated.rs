@@ -48,7 +48,7 @@ use super::stride_choice::{Stride, StrideChoice};
 use super::Readout;
 use crate::layout::Layout;
 use crate::log2::log2_q16;
-use crate::network::{NetSink, Trigger};
+use crate::network::{NetSink, Reads, Trigger};
 use crate::params::{Trace, TAU_SLOW_US};
 use crate::unit::Kernel;
 
@@ -102,14 +102,20 @@ pub fn has_twins<L: Layout>(layout: &L) -> bool {
     2 * with_both >= with_units
 }
 
+/// Cells [`has_near`] looks at, at most (evenly spread): it runs when the pipeline is built,
+/// which on a board happens while events arrive.
+const NEAR_SAMPLE_CELLS: usize = 256;
+
 /// Whether the layout has near units: its stride is above 1 and, for at least half of its
-/// units, the pixel one pixel from the TRG pixel towards the FAC pixel has state (a cell).
+/// units (of up to [`NEAR_SAMPLE_CELLS`] cells spread over the layout), the pixel one pixel
+/// from the TRG pixel towards the FAC pixel has state (a cell).
 pub fn has_near<L: Layout>(layout: &L) -> bool {
     if layout.stride() < 2 {
         return false;
     }
     let (mut units, mut near) = (0usize, 0usize);
-    for c in 0..layout.cell_count() {
+    let step = (layout.cell_count() / NEAR_SAMPLE_CELLS).max(1);
+    for c in (0..layout.cell_count()).step_by(step) {
         let mask = layout.units(c);
         let (x, y) = layout.pixel(c);
         for (slot, dx) in [(0u8, -1i32), (1, 1)] {
@@ -172,6 +178,8 @@ pub struct Calibrated {
     gate: OutputGate,
     /// Whether the near units or the layout's are decoded.
     stride: StrideChoice,
+    /// Whether the layout has near units ([`has_near`]).
+    near_units: bool,
     /// Decoded bursts so far.
     pub samples: u64,
     /// Of which from the slow units.
@@ -192,6 +200,7 @@ impl Calibrated {
         if !has_twins(layout) {
             field.choose_by_decode_rate();
         }
+        let near_units = has_near(layout);
         let log2_tau = [
             log2_q16(u64::from(p.tau_fac_us), 0),
             log2_q16(u64::from(TAU_SLOW_US), 0),
@@ -205,7 +214,8 @@ impl Calibrated {
             min_drive: min_burst_drive(kernel),
             slow_scene_own: Trace::saturating_from_num(p.w_fac).saturating_add(SLOW_SCENE_MARGIN),
             gate: OutputGate::new(cal.period_us, WARMUP_US),
-            stride: StrideChoice::new(has_near(layout)),
+            stride: StrideChoice::new(near_units),
+            near_units,
             samples: 0,
             slow_samples: 0,
         }
@@ -274,17 +284,30 @@ impl NetSink for Calibrated {
     const SLOW: bool = true;
     const NEAR: bool = true;
 
-    fn slow_near(&self) -> bool {
-        self.stride.choice() == Stride::Near
+    fn reads(&self, y: u16) -> Reads {
+        if !self.near_units {
+            return Reads::LAYOUT;
+        }
+        let near = self.stride.choice() == Stride::Near;
+        let both = StrideChoice::counts_row(y);
+        Reads {
+            layout: both || !near,
+            near: both || near,
+            slow_near: near,
+        }
     }
 
     fn trigger(&mut self, t: &Trigger) {
         let far = self.fast_burst(t, t.drive);
         let near = self.fast_burst(t, t.near_drive);
-        let region = self.field.geometry().region(t.x, t.y);
-        for (stride, burst) in [(Stride::Near, near), (Stride::Layout, far)] {
-            if let Some((_, positive)) = burst {
-                self.stride.add(stride, region, positive);
+        // The pixel's region, found once, and only for a burst.
+        let region =
+            (far.is_some() || near.is_some()).then(|| self.field.geometry().region(t.x, t.y));
+        if let (Some(region), true) = (region, StrideChoice::counts_row(t.y)) {
+            for (stride, burst) in [(Stride::Near, near), (Stride::Layout, far)] {
+                if let Some((_, positive)) = burst {
+                    self.stride.add(stride, region, positive);
+                }
             }
         }
         let stride = self.stride.choice();
@@ -311,6 +334,7 @@ impl NetSink for Calibrated {
             Stride::Near => self.rates.near_rotation_rate(dt, t.x),
             Stride::Layout => self.rates.rotation_rate(dt, t.x),
         };
+        let region = region.unwrap_or_else(|| self.field.geometry().region(t.x, t.y));
         self.field.add_in(pop, region, l2, positive);
         self.samples += 1;
     }

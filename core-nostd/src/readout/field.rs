@@ -460,8 +460,15 @@ impl Field {
             let m = u64::from(m);
             while found < 3 && m > 0 && acc + m >= targets.get(found).copied().unwrap_or(0) {
                 let need = targets.get(found).copied().unwrap_or(0).saturating_sub(acc);
-                // Position within the bin along increasing signed rate.
-                let frac_q16 = ((need << 16) / m) as i64;
+                // Position within the bin along increasing signed rate (`need <= m < 2^32`;
+                // both cut to 16 bits so that the division is a 32-bit one, to 2^-15).
+                let cut = (64 - m.leading_zeros()).saturating_sub(16);
+                let frac_q16 = i64::from(
+                    (((need >> cut) as u32) << 16)
+                        .checked_div((m >> cut) as u32)
+                        .unwrap_or(0)
+                        .min(1 << 16),
+                );
                 let frac_abs = if positive {
                     frac_q16
                 } else {

@@ -23,7 +23,8 @@
 //! the paper's units' decodes of both strides count, per region and sign, leaky over
 //! [`MEMORY_US`]; the near units are decoded while their agreement `Σ max(0, (P - N)² / (P + N)
 //! - RANDOM_AGREEMENT)` (P, N: decodes per sign in a region) is at least the layout's, else the
-//! layout's units. Over the first [`SETTLE_US`], and while neither stride agrees at all, the
+//! layout's units. Only onsets on one row in [`COUNT_ROWS`] are counted (elsewhere the stride
+//! not chosen is not read at all). Over the first [`SETTLE_US`], and while neither stride agrees at all, the
 //! choice stays as it was (at the start: near, on layouts that have near units,
 //! [`super::calibrated::has_near`]).
 
@@ -40,7 +41,12 @@ pub const SETTLE_US: u32 = MEMORY_US / 4;
 /// Outputs between two looks at the counts (their decay is applied then, for the whole time
 /// since the last look): the choice needs no faster answer than its 1 s memory, and a look
 /// costs a division per region and stride.
-pub const LOOK_EVERY: u32 = 16;
+pub const LOOK_EVERY: u32 = 64;
+
+/// The rows whose onsets are counted: one in this many (`y % COUNT_ROWS == 0`). Elsewhere only
+/// the chosen stride's FAC pixels are read, so the choice costs two FAC trace reads on one row
+/// in four.
+pub const COUNT_ROWS: u16 = 4;
 
 /// Decay of the counts.
 static MEMORY: ExpDecay = ExpDecay::new(MEMORY_US);
@@ -86,6 +92,11 @@ impl StrideChoice {
         self.choice
     }
 
+    /// Whether onsets at row `y` are counted (both strides' FAC pixels are read there).
+    pub fn counts_row(y: u16) -> bool {
+        y.is_multiple_of(COUNT_ROWS)
+    }
+
     /// One decode of the paper's units of `stride` in field region `region`, with its sign.
     pub fn add(&mut self, stride: Stride, region: usize, positive: bool) {
         if let Some(c) = self
@@ -106,12 +117,15 @@ impl StrideChoice {
             regions
                 .iter()
                 .map(|&[n, p]| {
-                    let (n, p) = (u64::from(n), u64::from(p));
-                    let d = n.abs_diff(p);
-                    d.saturating_mul(d)
-                        .checked_div(n + p)
-                        .unwrap_or(0)
-                        .saturating_sub(random)
+                    // (P - N)² / (P + N) = d · (d / s): the ratio in Q16 from both cut to 16
+                    // bits (a 32-bit division, to 2^-15), then one product.
+                    let (d, sum) = (n.abs_diff(p), u64::from(n) + u64::from(p));
+                    let cut = (64 - sum.leading_zeros()).saturating_sub(16);
+                    let ratio_q16 = ((((u64::from(d) >> cut) as u32) << 16)
+                        .checked_div((sum >> cut) as u32)
+                        .unwrap_or(0))
+                    .min(1 << 16);
+                    ((u64::from(d) * u64::from(ratio_q16)) >> 16).saturating_sub(random)
                 })
                 .sum()
         })
