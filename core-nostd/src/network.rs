@@ -218,7 +218,7 @@ pub struct Trigger {
     /// The same for the slow units (FAC time constant [`TAU_SLOW_US`]): drives `w_T · I_S(t⁻)`
     /// of the pixel's two slow units and its own slow trace after the event. Zero unless the
     /// sink asks for them ([`NetSink::SLOW`]). Of the near slow units instead when the sink
-    /// says so ([`NetSink::slow_near`]).
+    /// says so ([`NetSink::reads`]).
     pub slow_drive: [Trace; 2],
     /// The pixel's own slow FAC trace just after this event (see `slow_drive`).
     pub own_slow: Trace,

@@ -107,7 +107,7 @@ pub fn has_twins<L: Layout>(layout: &L) -> bool {
 const NEAR_SAMPLE_CELLS: usize = 256;
 
 /// Whether the layout has near units: its stride is above 1 and, for at least half of its
-/// units (of up to [`NEAR_SAMPLE_CELLS`] cells spread over the layout), the pixel one pixel
+/// units (of up to 256 cells spread over the layout), the pixel one pixel
 /// from the TRG pixel towards the FAC pixel has state (a cell).
 pub fn has_near<L: Layout>(layout: &L) -> bool {
     if layout.stride() < 2 {
