@@ -898,7 +898,12 @@ impl<'a, L: Layout> Network<'a, L> {
         let wide = self.wide();
         let keeps_slow = self.keeps_slow::<S>();
         let drives = |fac: [u32; 2]| fac.map(|f| kernel.drive(self.fac_trace(f)));
-        let (drive, near_drive) = (drives(far), drives(near));
+        let drive = drives(far);
+        let near_drive = if S::NEAR {
+            drives(near)
+        } else {
+            [Trace::ZERO; 2]
+        };
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };

@@ -461,18 +461,8 @@ struct OracleStrideChoice {
 
 impl OracleStrideChoice {
     fn agreement(&self, stride: usize) -> f64 {
-        let random = f64::from(crate::readout::field::RANDOM_AGREEMENT);
         self.counts.get(stride).map_or(0.0, |regions| {
-            regions
-                .iter()
-                .map(|&[n, p]| {
-                    if n + p > 0.0 {
-                        ((p - n) * (p - n) / (n + p) - random).max(0.0)
-                    } else {
-                        0.0
-                    }
-                })
-                .sum()
+            regions.iter().map(|&[n, p]| sign_agreement(n, p)).sum()
         })
     }
 
@@ -1332,8 +1322,16 @@ const M_MAX_F64: f64 = 65_528.0;
 /// Decoded TRG events of one pixel at most this far apart (µs) are one onset.
 const SAME_ONSET_F64: f64 = 50.0;
 
-/// [`crate::readout::field::RANDOM_AGREEMENT`] in samples.
-const RANDOM_AGREEMENT: f64 = crate::readout::field::RANDOM_AGREEMENT as f64;
+/// [`crate::readout::field::sign_agreement`] in f64 (samples): `(P - N)² / (P + N)` less
+/// [`crate::readout::field::RANDOM_AGREEMENT`], at least 0; 0 for an empty region.
+fn sign_agreement(n: f64, p: f64) -> f64 {
+    let random = f64::from(crate::readout::field::RANDOM_AGREEMENT);
+    if n + p > 0.0 {
+        ((p - n) * (p - n) / (p + n) - random).max(0.0)
+    } else {
+        0.0
+    }
+}
 
 /// The field estimator of [`crate::readout::field`] in f64, one population: leaky signed
 /// histograms of `log2 |rate|` per region, decayed exactly each period; per region the median
@@ -1471,14 +1469,7 @@ impl OracleField {
         let agree: f64 = self
             .hist
             .iter()
-            .map(|[neg, pos]| {
-                let (n, p) = (neg.iter().sum::<f64>(), pos.iter().sum::<f64>());
-                if n + p > 0.0 {
-                    ((p - n) * (p - n) / (p + n) - RANDOM_AGREEMENT).max(0.0)
-                } else {
-                    0.0
-                }
-            })
+            .map(|[neg, pos]| sign_agreement(neg.iter().sum(), pos.iter().sum()))
             .sum();
         agree / self.tau_a
     }

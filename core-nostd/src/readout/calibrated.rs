@@ -229,25 +229,31 @@ impl Calibrated {
     /// `log2 dt` (Q16.16, dt in s) that a burst with this drive codes for, with FAC time
     /// constant `2^log2_tau` µs, if it decodes.
     fn decode_dt(&self, drive: Trace, own_fac: Trace, log2_tau: i32) -> Option<i32> {
-        if drive < self.min_drive || own_fac == Trace::ZERO {
+        self.decode_dt_below(drive, self.ceiling(own_fac), log2_tau)
+    }
+
+    /// `w_T` times the pixel's own trace `own` (Trace bits): the drive of an edge at no delay,
+    /// which every decoded drive lies below.
+    fn ceiling(&self, own: Trace) -> u64 {
+        (u64::from(self.w_trg) * u64::from(own.to_bits())) >> 16
+    }
+
+    /// [`Calibrated::decode_dt`] with the pixel's [`Calibrated::ceiling`] known.
+    fn decode_dt_below(&self, drive: Trace, ceiling: u64, log2_tau: i32) -> Option<i32> {
+        if drive < self.min_drive || ceiling == 0 {
             return None;
         }
         // l = log2(drive / (w_T · own)) < 0.
-        let denom = (u64::from(self.w_trg) * u64::from(own_fac.to_bits())) >> 16;
-        if denom == 0 {
-            return None;
-        }
-        let l = log2_q16(u64::from(drive.to_bits()), 0).saturating_sub(log2_q16(denom, 0));
+        let l = log2_q16(u64::from(drive.to_bits()), 0).saturating_sub(log2_q16(ceiling, 0));
         RateDecoder::log2_dt_s(l, log2_tau)
     }
 
     /// The paper's units' drive (of the stronger unit) and direction (`true`: right-to-left),
-    /// if it bursts and codes a crossing (a drive below `w_T` times the pixel's own trace):
-    /// what [`Calibrated::decode_dt`] decodes, without the logarithms.
-    fn fast_burst(&self, t: &Trigger, drive: [Trace; 2]) -> Option<(Trace, bool)> {
+    /// if it bursts and codes a crossing (below the pixel's `ceiling`): what
+    /// [`Calibrated::decode_dt_below`] decodes, without the logarithms.
+    fn fast_burst(&self, drive: [Trace; 2], ceiling: u64) -> Option<(Trace, bool)> {
         let (fast, positive) = stronger(drive);
-        let own = (u64::from(self.w_trg) * u64::from(t.own_fac.to_bits())) >> 16;
-        (fast >= self.min_drive && u64::from(fast.to_bits()) < own).then_some((fast, positive))
+        (fast >= self.min_drive && u64::from(fast.to_bits()) < ceiling).then_some((fast, positive))
     }
 
     /// The same for the slow units (`t.slow_drive`, of the chosen stride), where the pixel's
@@ -298,8 +304,9 @@ impl NetSink for Calibrated {
     }
 
     fn trigger(&mut self, t: &Trigger) {
-        let far = self.fast_burst(t, t.drive);
-        let near = self.fast_burst(t, t.near_drive);
+        let ceiling = self.ceiling(t.own_fac);
+        let far = self.fast_burst(t.drive, ceiling);
+        let near = self.fast_burst(t.near_drive, ceiling);
         // The pixel's region, found once, and only for a burst.
         let region =
             (far.is_some() || near.is_some()).then(|| self.field.geometry().region(t.x, t.y));
@@ -317,7 +324,7 @@ impl NetSink for Calibrated {
         };
         let [tau_fast, _] = self.log2_tau;
         let fast = fast.and_then(|(drive, positive)| {
-            self.decode_dt(drive, t.own_fac, tau_fast)
+            self.decode_dt_below(drive, ceiling, tau_fast)
                 .map(|dt| (dt, positive))
         });
         let (dt, positive, pop) = match fast {

@@ -128,6 +128,18 @@ const SLOPE_PRIOR: i64 = ((WEIGHT_SCALE >> 34) << 12) as i64;
 /// Weight of a sample when the histograms were last renormalised (Q16 = one sample).
 const UNIT_WEIGHT: u32 = 1 << 16;
 
+/// What a region's decodes of the two signs (`neg`, `pos`, in units of which one sample is
+/// `sample`; both below 2^40) agree in sign beyond random signs: `(P - N)² / (P + N)` less
+/// [`RANDOM_AGREEMENT`] samples, at least 0; 0 for an empty region. The rule by which a
+/// population (or a stride, [`super::stride_choice`]) answers.
+pub fn sign_agreement(neg: u64, pos: u64, sample: u64) -> u64 {
+    let (d, t) = (neg.abs_diff(pos), neg + pos);
+    // d · (d / t), with d / t in Q16 (d <= t).
+    (d << 16).checked_div(t).map_or(0, |share| {
+        ((d * share) >> 16).saturating_sub(u64::from(RANDOM_AGREEMENT) * sample)
+    })
+}
+
 /// Settings of the field estimator.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FieldSettings {
@@ -560,16 +572,14 @@ impl Field {
     fn consistent_rate(&self, pop: Population) -> u64 {
         let i = pop as usize;
         let w = u64::from(self.weight.get(i).copied().unwrap_or(UNIT_WEIGHT).max(1));
-        // A sample weighs `w` now (mass units).
-        let random = u64::from(RANDOM_AGREEMENT) * w;
-        let mut agree = 0u64; // at most the population's mass, < 2^46
-        for &[neg, pos] in self.mass.get(i).map_or(&[][..], |m| &m[..]) {
-            let (d, t) = (neg.abs_diff(pos), neg + pos);
-            // d · (d / t), with d / t in Q16 (d <= t < 2^40); nothing for an empty region.
-            if let Some(share) = (d << 16).checked_div(t) {
-                agree += ((d * share) >> 16).saturating_sub(random);
-            }
-        }
+        // A sample weighs `w` now (mass units); at most the population's mass, < 2^46.
+        let agree: u64 = self
+            .mass
+            .get(i)
+            .map_or(&[][..], |m| &m[..])
+            .iter()
+            .map(|&[neg, pos]| sign_agreement(neg, pos, w))
+            .sum();
         let tau = u64::from(self.tau_us.get(i).copied().unwrap_or(1).max(1));
         ((agree << 16) / w) / tau
     }

@@ -18,7 +18,7 @@
 //! stride 1, because the field's signed median sinks with the wrong-sign share).
 //!
 //! # The rule
-//! The rule the field uses between its populations ([`super::field::RANDOM_AGREEMENT`]):
+//! The rule the field uses between its populations ([`sign_agreement`]):
 //! the decodes that agree more in sign, per second, within the field's regions, answer. Here
 //! the paper's units' decodes of both strides count, per region and sign, leaky over
 //! [`MEMORY_US`]; the near units are decoded while their agreement `Σ max(0, (P - N)² / (P + N)
@@ -28,7 +28,7 @@
 //! choice stays as it was (at the start: near, on layouts that have near units,
 //! [`super::calibrated::has_near`]).
 
-use super::field::{RANDOM_AGREEMENT, REGIONS};
+use super::field::{sign_agreement, REGIONS};
 use crate::exp_table::{scale_q31, ExpDecay};
 
 /// Memory of the sign counts (µs).
@@ -112,21 +112,10 @@ impl StrideChoice {
     /// Sign agreement of a stride's decodes: `Σ max(0, (P - N)² / (P + N) - RANDOM_AGREEMENT)`
     /// over the regions, in Q8 samples.
     fn agreement_q8(&self, stride: Stride) -> u64 {
-        let random = u64::from(RANDOM_AGREEMENT) << 8;
         self.counts_q8.get(stride as usize).map_or(0, |regions| {
             regions
                 .iter()
-                .map(|&[n, p]| {
-                    // (P - N)² / (P + N) = d · (d / s): the ratio in Q16 from both cut to 16
-                    // bits (a 32-bit division, to 2^-15), then one product.
-                    let (d, sum) = (n.abs_diff(p), u64::from(n) + u64::from(p));
-                    let cut = (64 - sum.leading_zeros()).saturating_sub(16);
-                    let ratio_q16 = ((((u64::from(d) >> cut) as u32) << 16)
-                        .checked_div((sum >> cut) as u32)
-                        .unwrap_or(0))
-                    .min(1 << 16);
-                    ((u64::from(d) * u64::from(ratio_q16)) >> 16).saturating_sub(random)
-                })
+                .map(|&[n, p]| sign_agreement(u64::from(n), u64::from(p), 1 << 8))
                 .sum()
         })
     }
