@@ -452,8 +452,8 @@ mod live_overload {
                 let amplitude = FLICKER_AMPLITUDE.to_string();
                 // The scene's own rate must stay within the firmware's capacity (the test is
                 // about the storm): at contrast 0.8 it is 160-260 k events/s outside the storm
-                // (at 1.0, 290-370 k, the strip's limit once the calibrated readout decodes its
-                // near units too: ~350 k events/s at 125 M instructions/s).
+                // (at 1.0, 290-370 k: since the calibrated readout decodes its near units too,
+                // the strip dropped frames there in the first 0.16 s as well).
                 let args = [
                     "--duration",
                     "1",
