@@ -405,6 +405,9 @@ pub const fn active_words(cells: usize) -> usize {
 pub struct Network<'a, L: Layout> {
     kernel: &'a Kernel,
     layout: L,
+    /// FAC-to-TRG distance (px): the layout's stride, or 1 for a network of near units
+    /// ([`Network::near_units`]).
+    stride: u16,
     cells: &'a mut [Cell],
     /// Empty when no sink wants spikes; else one pair per cell, or the pool's slots.
     units: &'a mut [UnitPair],
@@ -505,20 +508,21 @@ impl<'a> NetState<'a> {
 }
 
 impl<'a> NetState<'a> {
-    /// The state split into two, each with the first half of every slice (the second half
-    /// of each is the other's): room for two networks over one layout (the spike readout's
-    /// paper's and slow units), each with half the units or half the pool.
-    pub fn halves(self) -> (Self, Self) {
-        fn split<T>(s: &mut [T]) -> (&mut [T], &mut [T]) {
-            let half = s.len() / 2;
-            s.split_at_mut_checked(half).unwrap_or((&mut [], &mut []))
+    /// The state split in two: the first with `1 / parts` of every slice (rounded down), the
+    /// second with the rest: room for `parts` networks over one layout (the spike readout's
+    /// paper's units and its side networks), each with its share of the units or the pool,
+    /// when the rest is split again.
+    pub fn split_off(self, parts: usize) -> (Self, Self) {
+        fn split<T>(s: &mut [T], parts: usize) -> (&mut [T], &mut [T]) {
+            let first = s.len() / parts.max(1);
+            s.split_at_mut_checked(first).unwrap_or((&mut [], &mut []))
         }
-        let (c0, c1) = split(self.cells);
-        let (u0, u1) = split(self.units);
-        let (a0, a1) = split(self.active);
+        let (c0, c1) = split(self.cells, parts);
+        let (u0, u1) = split(self.units, parts);
+        let (a0, a1) = split(self.active, parts);
         let (o0, o1) = match self.owners {
             Some(o) => {
-                let (o0, o1) = split(o);
+                let (o0, o1) = split(o, parts);
                 (Some(o0), Some(o1))
             }
             None => (None, None),
@@ -619,6 +623,7 @@ impl<'a, L: Layout> Network<'a, L> {
         let slow_onset_level = decay_slow(kernel.fac_input(Trace::ZERO), SLOW_ONSET_GAP_US);
         Ok(Self {
             kernel,
+            stride: layout.stride(),
             layout,
             cells,
             units,
@@ -636,6 +641,18 @@ impl<'a, L: Layout> Network<'a, L> {
     /// The layout.
     pub fn layout(&self) -> &L {
         &self.layout
+    }
+
+    /// The same network with its units' FAC pixel one pixel from the TRG pixel instead of the
+    /// layout's stride: the near units (see [`crate::readout::stride_choice`]).
+    pub fn near_units(mut self) -> Self {
+        self.stride = 1;
+        self
+    }
+
+    /// FAC-to-TRG distance of the units (px).
+    pub fn stride(&self) -> u16 {
+        self.stride
     }
 
     /// The kernel.
@@ -762,7 +779,7 @@ impl<'a, L: Layout> Network<'a, L> {
             self.stats.out_of_order += 1;
         }
         let mask = self.layout.units_at(ev.x, ev.y, c);
-        let stride = i32::from(self.layout.stride());
+        let stride = i32::from(self.stride);
         let reads = if S::NEAR && stride > 1 {
             sink.reads(ev.y)
         } else {

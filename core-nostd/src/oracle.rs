@@ -758,14 +758,19 @@ pub struct OracleSpikeYaw<L: crate::layout::Layout> {
     focal: f64,
     cx: f64,
     period: f64,
-    /// The paper's units (0) and the slow units (1, `tau_F` = [`crate::params::TAU_SLOW_US`]).
-    pops: [SpikePopulation; 2],
+    /// The paper's units (0), the slow units (1, `tau_F` = [`crate::params::TAU_SLOW_US`])
+    /// and, on layouts that have them, the near units (2: the paper's units at stride 1).
+    pops: std::vec::Vec<SpikePopulation>,
     /// The field of each population (as [`OracleYaw`]'s).
     fields: [OracleField; 2],
     twins: bool,
     /// A slow decode is dropped when the pixel's previous onset came up to this long (µs)
     /// before it (`tau_F ln 10` of the paper's units).
     busy_window: f64,
+    /// Whether the near units or the layout's are read.
+    stride: OracleStrideChoice,
+    /// The shortest crossing of one pixel (s) read from the near units.
+    near_floor_s: f64,
     next_out: Option<f64>,
     /// TRG events before this time (µs) are not decoded (the warm-up).
     decode_from: f64,
@@ -783,6 +788,10 @@ pub struct OracleSpikeYaw<L: crate::layout::Layout> {
 /// units) and the decoder's view of its bursts.
 struct SpikePopulation {
     p: OracleParams,
+    /// FAC-to-TRG distance (px).
+    stride: i32,
+    /// Whether these are the near units (else the layout's stride).
+    near: bool,
     /// Onset gap (µs).
     gap: f64,
     /// Per cell: FAC trace, its time, last polarity.
@@ -817,6 +826,8 @@ struct SpikeTarget<'t, L: crate::layout::Layout> {
     field: &'t mut OracleField,
     decode_from: f64,
     busy_window: f64,
+    stride: &'t mut OracleStrideChoice,
+    near_floor_s: f64,
     samples: &'t mut u64,
 }
 
@@ -858,21 +869,37 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             tau_fac: f64::from(crate::params::TAU_SLOW_US),
             ..p
         };
+        let stride = i32::from(layout.stride());
+        let near = crate::readout::calibrated::has_near(&layout);
+        let mut pops = std::vec![SpikePopulation::new(p, n, gap_us, stride), {
+            let mut s = SpikePopulation::new(slow, n, gap_us, stride);
+            // Where the paper's units' drive from a lone edge falls to the smallest that
+            // makes a burst.
+            let min = core::f64::consts::E * p.theta / (p.gain_per_us * p.tau_trg);
+            s.fast_reach_s = Some(p.tau_fac * (p.w_trg * p.w_fac / min).ln() * 1e-6);
+            s
+        }];
+        if near {
+            let mut s = SpikePopulation::new(p, n, gap_us, 1);
+            s.near = true;
+            pops.push(s);
+        }
+        let share = (f64::from(crate::readout::spikes::NEAR_DRIVE_SHARE_LOG2) / 65_536.0).exp2();
         Self {
             focal,
             cx,
             period: period_us,
-            pops: [SpikePopulation::new(p, n, gap_us), {
-                let mut s = SpikePopulation::new(slow, n, gap_us);
-                // Where the paper's units' drive from a lone edge falls to the smallest that
-                // makes a burst.
-                let min = core::f64::consts::E * p.theta / (p.gain_per_us * p.tau_trg);
-                s.fast_reach_s = Some(p.tau_fac * (p.w_trg * p.w_fac / min).ln() * 1e-6);
-                s
-            }],
+            pops,
             fields,
             twins: crate::readout::calibrated::has_twins(&layout),
             busy_window: p.tau_fac * core::f64::consts::LN_10,
+            stride: OracleStrideChoice {
+                counts: [[[0.0; 2]; crate::readout::field::REGIONS]; 2],
+                near,
+                settled: 0.0,
+                outputs: 0,
+            },
+            near_floor_s: -p.tau_fac * share.ln() * 1e-6,
             next_out: None,
             decode_from: f64::INFINITY,
             outputs: 0,
@@ -928,7 +955,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             // Every unit that may spike, to the output time; then the spikes in time order,
             // the paper's units' first; then the decodes whose twin has answered or can no
             // longer answer.
-            for k in 0..2 {
+            for k in 0..self.pops.len() {
                 let spikes = match self.pops.get_mut(k) {
                     Some(pop) => pop.advance_all(next),
                     None => continue,
@@ -938,12 +965,13 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
                     self.with_population(k, |pop, target| pop.spike(target, ts, id));
                 }
             }
-            for k in 0..2 {
+            for k in 0..self.pops.len() {
                 self.with_population(k, |pop, target| pop.settle(target, next));
             }
+            self.stride.age(self.period);
             let warmup = u64::from(
                 (crate::readout::shared::WARMUP_US
-                    + self.pops[0].p.tau_trg as u32
+                    + self.pops.first().map_or(0, |p| p.p.tau_trg as u32)
                     + self.fields[0].tau_a as u32)
                     .div_ceil(self.period as u32),
             );
@@ -974,7 +1002,12 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         k: usize,
         f: impl FnOnce(&mut SpikePopulation, &mut SpikeTarget<'_, L>),
     ) {
-        let (Some(pop), Some(field)) = (self.pops.get_mut(k), self.fields.get_mut(k)) else {
+        let Some(pop) = self.pops.get_mut(k) else {
+            return;
+        };
+        // The near units' decodes go to the paper's units' field.
+        let which = usize::from(pop.fast_reach_s.is_some());
+        let Some(field) = self.fields.get_mut(which) else {
             return;
         };
         let mut target = SpikeTarget {
@@ -984,6 +1017,8 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             field,
             decode_from: self.decode_from,
             busy_window: self.busy_window,
+            stride: &mut self.stride,
+            near_floor_s: self.near_floor_s,
             samples: &mut self.samples,
         };
         f(pop, &mut target);
@@ -991,9 +1026,11 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
 }
 
 impl SpikePopulation {
-    fn new(p: OracleParams, n: usize, gap: f64) -> Self {
+    fn new(p: OracleParams, n: usize, gap: f64, stride: i32) -> Self {
         Self {
             p,
+            stride,
+            near: false,
             gap,
             fac: std::vec![(0.0, 0.0, false); n],
             units: std::vec![(OracleUnit::default(), 0.0); 2 * n],
@@ -1047,7 +1084,7 @@ impl SpikePopulation {
             return;
         }
         let mask = layout.units(c);
-        let s = i32::from(layout.stride());
+        let s = self.stride;
         for (slot, dx) in [(0usize, -s), (1usize, s)] {
             if mask & (1 << slot) == 0 {
                 continue;
@@ -1296,21 +1333,51 @@ impl SpikePopulation {
         if !add || t_trg < target.decode_from {
             return true;
         }
-        let ratio = d / (p.w_trg * own);
-        if !(ratio > 0.0 && ratio < 1.0) {
+        // At most `AT_CEILING` of the ceiling: faster than that counts as the fastest.
+        let at_ceiling = (f64::from(crate::readout::spikes::AT_CEILING_LOG2) / 65_536.0).exp2();
+        let ratio = (d / (p.w_trg * own)).min(at_ceiling);
+        if ratio.is_nan() || ratio <= 0.0 {
             return true;
         }
         let dt_s = -p.tau_fac * ratio.ln() * 1e-6;
-        if let Some(reach) = self.fast_reach_s {
-            if busy || dt_s <= reach {
-                // The paper's units time this edge.
-                return true;
+        let (x, y) = target.layout.pixel(cell);
+        let near_chosen = target.stride.near;
+        match self.fast_reach_s {
+            Some(reach) => {
+                // Over two pixels the paper's units reach twice as far as over one.
+                let reach = if near_chosen { 2.0 * reach } else { reach };
+                if busy || dt_s <= reach {
+                    // The paper's units time this edge.
+                    return true;
+                }
+            }
+            None => {
+                if crate::readout::stride_choice::StrideChoice::counts_row(y) {
+                    let region = target.field.region_index(x, y);
+                    let k = usize::from(!self.near);
+                    if let Some(c) = target
+                        .stride
+                        .counts
+                        .get_mut(k)
+                        .and_then(|r| r.get_mut(region))
+                        .and_then(|c| c.get_mut(u))
+                    {
+                        *c += 1.0;
+                    }
+                }
+                let read = match (near_chosen, self.near) {
+                    (false, near) => !near,
+                    (true, true) => dt_s >= target.near_floor_s,
+                    (true, false) => dt_s < 2.0 * target.near_floor_s,
+                };
+                if !read {
+                    return true;
+                }
             }
         }
-        let (x, y) = target.layout.pixel(cell);
         let dx = f64::from(x) - target.cx;
         let g = target.focal + dx * dx / target.focal;
-        let w = f64::from(target.layout.stride()) / (dt_s * g);
+        let w = f64::from(self.stride) / (dt_s * g);
         target.field.add(x, y, if u == 1 { w } else { -w });
         *target.samples += 1;
         true

@@ -14,17 +14,34 @@ use crate::event::Event;
 use crate::flags;
 use crate::layout::Layout;
 use crate::network::{Network, PoolUse};
-use crate::readout::{Readout, SlowSide, YawSample};
+use crate::readout::{Readout, Side, SideSink, YawSample};
 use crate::time::EventTime;
 
 /// Samples are flagged stale after this long without an event (µs).
 pub const STALE_AFTER_US: u32 = 100_000;
 
-/// Network plus readout plus output clock (plus, for readouts with [`Readout::SLOW_UNITS`], the
-/// network of slow units: the same events, in the same order, after the main network's).
+/// The spiking networks beside the main one (see [`Side`]), for readouts that read them
+/// ([`Readout::SLOW_UNITS`], [`Readout::NEAR_UNITS`]).
+pub struct Sides<'a, L: Layout> {
+    /// The slow units' network.
+    pub slow: Option<Network<'a, L>>,
+    /// The near units' network ([`Network::near_units`]).
+    pub near: Option<Network<'a, L>>,
+}
+
+impl<L: Layout> Sides<'_, L> {
+    /// None.
+    pub const NONE: Self = Self {
+        slow: None,
+        near: None,
+    };
+}
+
+/// Network plus readout plus output clock (plus, for readouts that read them, the side
+/// networks: the same events, in the same order, after the main network's).
 pub struct Pipeline<'a, L: Layout, R: Readout> {
     net: Network<'a, L>,
-    slow: Option<Network<'a, L>>,
+    sides: Sides<'a, L>,
     readout: R,
     period_us: u32,
     /// Next output time, once the first event has set the grid.
@@ -39,20 +56,23 @@ pub struct Pipeline<'a, L: Layout, R: Readout> {
 impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     /// A pipeline producing one sample every `period_us` µs (at least 1).
     pub fn new(net: Network<'a, L>, readout: R, period_us: u32) -> Self {
-        Self::with_slow_units(net, None, readout, period_us)
+        Self::with_sides(net, Sides::NONE, readout, period_us)
     }
 
-    /// The same, with the network of slow units `slow` (for a readout with
-    /// [`Readout::SLOW_UNITS`]; others ignore it).
-    pub fn with_slow_units(
+    /// The same, with the side networks `sides` (each for a readout that reads it; others
+    /// ignore it).
+    pub fn with_sides(
         net: Network<'a, L>,
-        slow: Option<Network<'a, L>>,
+        sides: Sides<'a, L>,
         readout: R,
         period_us: u32,
     ) -> Self {
         Self {
             net,
-            slow: if R::SLOW_UNITS { slow } else { None },
+            sides: Sides {
+                slow: sides.slow.filter(|_| R::SLOW_UNITS),
+                near: sides.near.filter(|_| R::NEAR_UNITS),
+            },
             readout,
             period_us: period_us.max(1),
             next_out: None,
@@ -67,29 +87,44 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         &self.net
     }
 
-    /// How full the unit pool is; with the slow units' network, whichever of the two pools
-    /// (each of the same size) had the higher peak. `None`: no pool.
-    pub fn pool_use(&self) -> Option<PoolUse> {
-        let main = self.net.pool_use();
-        let slow = self.slow.as_ref().and_then(Network::pool_use);
-        match (main, slow) {
-            (Some(a), Some(b)) if b.peak > a.peak => Some(b),
-            (None, b) => b,
-            (a, _) => a,
+    /// The networks: the main one, then the side networks that run.
+    fn networks(&self) -> impl Iterator<Item = &Network<'a, L>> {
+        core::iter::once(&self.net)
+            .chain(self.sides.slow.as_ref())
+            .chain(self.sides.near.as_ref())
+    }
+
+    /// Runs `f` on each side network that runs, with the sink it writes to.
+    #[inline]
+    fn each_side(&mut self, mut f: impl FnMut(&mut Network<'a, L>, &mut SideSink<'_, R>)) {
+        let Self { sides, readout, .. } = self;
+        for (net, side) in [(&mut sides.slow, Side::Slow), (&mut sides.near, Side::Near)] {
+            if let Some(net) = net.as_mut() {
+                f(net, &mut SideSink { readout, side });
+            }
         }
     }
 
-    /// Spikes emitted (and not taken back) by both networks.
-    pub fn spike_count(&self) -> u64 {
-        let count = |n: &Network<'a, L>| n.stats().spikes_lr.saturating_add(n.stats().spikes_rl);
-        let slow = self.slow.as_ref().map_or(0, count);
-        count(&self.net).saturating_add(slow)
+    /// How full the unit pool is; with side networks, whichever of the pools (each of the
+    /// same size) had the higher peak. `None`: no pool.
+    pub fn pool_use(&self) -> Option<PoolUse> {
+        self.networks()
+            .filter_map(Network::pool_use)
+            .reduce(|a, b| if b.peak > a.peak { b } else { a })
     }
 
-    /// Unit inputs lost to a full unit pool, in both networks.
+    /// Spikes emitted (and not taken back) by all networks.
+    pub fn spike_count(&self) -> u64 {
+        self.networks().fold(0u64, |n, net| {
+            n.saturating_add(net.stats().spikes_lr)
+                .saturating_add(net.stats().spikes_rl)
+        })
+    }
+
+    /// Unit inputs lost to a full unit pool, in all networks.
     pub fn pool_full(&self) -> u64 {
-        let slow = self.slow.as_ref().map_or(0, |n| n.stats().pool_full);
-        self.net.stats().pool_full.saturating_add(slow)
+        self.networks()
+            .fold(0u64, |n, net| n.saturating_add(net.stats().pool_full))
     }
 
     /// The readout.
@@ -106,8 +141,8 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         }
         self.last_event = t;
         self.net.event(ev, &mut self.readout);
-        if let (true, Some(slow)) = (R::SLOW_UNITS, self.slow.as_mut()) {
-            slow.event(ev, &mut SlowSide(&mut self.readout));
+        if R::SLOW_UNITS || R::NEAR_UNITS {
+            self.each_side(|net, sink| net.event(ev, sink));
         }
     }
 
@@ -122,8 +157,8 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     pub fn finish<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
         self.poll(now_us, out);
         self.net.flush(now_us, &mut self.readout);
-        if let (true, Some(slow)) = (R::SLOW_UNITS, self.slow.as_mut()) {
-            slow.flush(now_us, &mut SlowSide(&mut self.readout));
+        if R::SLOW_UNITS || R::NEAR_UNITS {
+            self.each_side(|net, sink| net.flush(now_us, sink));
         }
     }
 
@@ -134,8 +169,8 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         };
         while t.is_after(next) || (inclusive && t == next) {
             self.net.tick(next.as_us(), &mut self.readout);
-            if let (true, Some(slow)) = (R::SLOW_UNITS, self.slow.as_mut()) {
-                slow.tick(next.as_us(), &mut SlowSide(&mut self.readout));
+            if R::SLOW_UNITS || R::NEAR_UNITS {
+                self.each_side(|net, sink| net.tick(next.as_us(), sink));
             }
             let (yaw_rate, mut f) = self.readout.output(next.as_us());
             if next.elapsed_since(self.last_event) > STALE_AFTER_US {

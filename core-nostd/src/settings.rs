@@ -17,8 +17,8 @@ use fixed::types::U16F16;
 use crate::event::Event;
 use crate::layout::{Dense, Layout, PaperBoxes, UnitMask};
 use crate::network::{active_words, InputFilter, NetError, NetState, NetStats, Network, PoolUse};
-use crate::pipeline::{Pipeline, ONSET_GAP_US};
-use crate::readout::calibrated::{default_tau_a_us, Calibrated, Calibration};
+use crate::pipeline::{Pipeline, Sides, ONSET_GAP_US};
+use crate::readout::calibrated::{default_tau_a_us, has_near, Calibrated, Calibration};
 use crate::readout::normalized::Normalized;
 use crate::readout::spikes::{SpikeCell, Spikes};
 use crate::readout::{Readout, YawSample};
@@ -98,8 +98,8 @@ pub struct Settings {
     pub tau_a_us: Option<u32>,
     /// Spiking readouts: `Some(n)`: unit state in a pool of `n` unit pairs
     /// (1..=[`MAX_UNIT_POOL`]; see [`crate::network::pool`]); `None`: one pair per cell. The
-    /// spike readout runs two networks (the paper's units and the slow ones), each with a pool
-    /// of `n`. The calibrated readout runs no units and ignores it.
+    /// spike readout runs up to three networks ([`Settings::spike_networks`]), each with a
+    /// pool of `n`. The calibrated readout runs no units and ignores it.
     pub unit_pool: Option<u32>,
 }
 
@@ -255,15 +255,19 @@ impl Settings {
                 active_words: active_words(unit_pairs),
                 spike_cells: 0,
             },
-            // Two networks over the layout (the paper's units and the slow ones), each with the
-            // pool's size; `build` splits every slice in two (`NetState::halves`).
-            ReadoutChoice::Spikes => StorageNeeds {
-                cells: 2 * cells,
-                unit_pairs: 2 * unit_pairs,
-                pool_owners: 2 * pool_owners,
-                active_words: 2 * active_words(unit_pairs),
-                spike_cells: 2 * Spikes::cells_for(&layout),
-            },
+            // Networks over the layout (the paper's units, the slow ones, the near ones), each
+            // with the pool's size; `build` splits every slice among them
+            // (`NetState::split_off`).
+            ReadoutChoice::Spikes => {
+                let n = Self::spike_networks(&layout);
+                StorageNeeds {
+                    cells: n * cells,
+                    unit_pairs: n * unit_pairs,
+                    pool_owners: n * pool_owners,
+                    active_words: n * active_words(unit_pairs),
+                    spike_cells: n * Spikes::cells_for(&layout),
+                }
+            }
         })
     }
 
@@ -325,26 +329,38 @@ impl Settings {
                 )?)
             }
             ReadoutChoice::Spikes => {
-                let per_population = Spikes::cells_for(&layout);
-                let given = spike_cells.len();
+                let per_network = Spikes::cells_for(&layout);
+                let networks = Self::spike_networks(&layout);
                 let short = SettingsError::SpikeCells {
-                    needed: per_population.saturating_mul(2),
-                    given,
+                    needed: per_network.saturating_mul(networks),
+                    given: spike_cells.len(),
                 };
-                let (fast_cells, slow_cells) = spike_cells
-                    .split_at_mut_checked(per_population)
-                    .ok_or(short)?;
-                if slow_cells.len() < per_population {
+                if spike_cells.len() < per_network.saturating_mul(networks) {
                     return Err(short);
                 }
-                let (state, slow_state) = state.halves();
+                let (fast_cells, rest) =
+                    spike_cells.split_at_mut_checked(per_network).ok_or(short)?;
+                let (slow_cells, near_cells) =
+                    rest.split_at_mut_checked(per_network).ok_or(short)?;
+                let (state, rest) = state.split_off(networks);
+                let (slow_state, near_state) = match networks {
+                    3 => {
+                        let (slow, near) = rest.split_off(2);
+                        (slow, Some(near))
+                    }
+                    _ => (rest, None),
+                };
                 let readout = Spikes::new(kernel, layout.clone(), cal, fast_cells)
-                    .with_slow_units(&SLOW_UNITS, slow_cells);
-                Built::Spikes(OnLayout::with_slow_units(
+                    .with_slow_units(&SLOW_UNITS, slow_cells)
+                    .with_near_units(near_cells);
+                Built::Spikes(OnLayout::with_sides(
                     kernel,
                     layout,
                     state,
-                    Some((&SLOW_UNITS, slow_state)),
+                    SideStates {
+                        slow: Some((&SLOW_UNITS, slow_state)),
+                        near: near_state,
+                    },
                     onsets,
                     readout,
                     self.period_us,
@@ -355,6 +371,12 @@ impl Settings {
 }
 
 impl Settings {
+    /// Spiking networks the spike readout runs over `layout`: the paper's units, the slow
+    /// units and, where the layout has near units ([`has_near`]), the near units.
+    pub fn spike_networks<L: Layout>(layout: &L) -> usize {
+        2 + usize::from(has_near(layout))
+    }
+
     /// `state` as the readout runs it: the calibrated readout runs no units (whatever unit
     /// memory `state` has stays unused).
     fn state_for_readout<'a>(&self, state: NetState<'a>) -> NetState<'a> {
@@ -457,6 +479,13 @@ pub enum Built<'a> {
     Spikes(OnLayout<'a, Spikes<'a, SensorLayout>>),
 }
 
+/// The state of the side networks a pipeline is built with: the slow units' (their kernel and
+/// state) and the near units' (the main kernel).
+struct SideStates<'a> {
+    slow: Option<(&'a Kernel, NetState<'a>)>,
+    near: Option<NetState<'a>>,
+}
+
 /// A pipeline with readout `R` over one of the layouts [`Settings`] choose from.
 // One value per run, in place (no heap).
 #[allow(clippy::large_enum_variant)]
@@ -488,17 +517,20 @@ impl<'a, R: Readout> OnLayout<'a, R> {
         readout: R,
         period_us: u32,
     ) -> Result<Self, SettingsError> {
-        Self::with_slow_units(kernel, layout, state, None, filter, readout, period_us)
+        let sides = SideStates {
+            slow: None,
+            near: None,
+        };
+        Self::with_sides(kernel, layout, state, sides, filter, readout, period_us)
     }
 
-    /// The same, with a network of slow units of kernel `slow.0` in `slow.1` (same layout and
-    /// input filter).
+    /// The same, with side networks in `sides` (same layout and input filter).
     #[inline(never)]
-    fn with_slow_units(
+    fn with_sides(
         kernel: &'a Kernel,
         layout: SensorLayout,
         state: NetState<'a>,
-        slow: Option<(&'a Kernel, NetState<'a>)>,
+        sides: SideStates<'a>,
         filter: InputFilter,
         readout: R,
         period_us: u32,
@@ -507,26 +539,25 @@ impl<'a, R: Readout> OnLayout<'a, R> {
             kernel: &'a Kernel,
             l: L,
             state: NetState<'a>,
-            slow: Option<(&'a Kernel, NetState<'a>)>,
+            sides: SideStates<'a>,
             filter: InputFilter,
-        ) -> Result<(Network<'a, L>, Option<Network<'a, L>>), SettingsError> {
-            let slow = match slow {
-                Some((k, s)) => {
-                    Some(Network::new(k, l.clone(), s, filter).map_err(SettingsError::Storage)?)
-                }
-                None => None,
-            };
-            let net = Network::new(kernel, l, state, filter).map_err(SettingsError::Storage)?;
-            Ok((net, slow))
+        ) -> Result<(Network<'a, L>, Sides<'a, L>), SettingsError> {
+            let net = |k, s| Network::new(k, l.clone(), s, filter).map_err(SettingsError::Storage);
+            let slow = sides.slow.map(|(k, s)| net(k, s)).transpose()?;
+            let near = sides
+                .near
+                .map(|s| net(kernel, s).map(Network::near_units))
+                .transpose()?;
+            Ok((net(kernel, state)?, Sides { slow, near }))
         }
         Ok(match layout {
             SensorLayout::Dense(l) => {
-                let (net, slow) = nets(kernel, l, state, slow, filter)?;
-                OnLayout::Dense(Pipeline::with_slow_units(net, slow, readout, period_us))
+                let (net, sides) = nets(kernel, l, state, sides, filter)?;
+                OnLayout::Dense(Pipeline::with_sides(net, sides, readout, period_us))
             }
             SensorLayout::Boxes(l) => {
-                let (net, slow) = nets(kernel, l, state, slow, filter)?;
-                OnLayout::Boxes(Pipeline::with_slow_units(net, slow, readout, period_us))
+                let (net, sides) = nets(kernel, l, state, sides, filter)?;
+                OnLayout::Boxes(Pipeline::with_sides(net, sides, readout, period_us))
             }
         })
     }
@@ -557,12 +588,12 @@ impl<'a, R: Readout> OnLayout<'a, R> {
         each_layout_pipeline!(self, p => p.pool_use())
     }
 
-    /// Unit inputs lost to a full unit pool (both networks of the spike readout).
+    /// Unit inputs lost to a full unit pool (all networks of the spike readout).
     pub fn pool_full(&self) -> u64 {
         each_layout_pipeline!(self, p => p.pool_full())
     }
 
-    /// Spikes of both networks (see [`Pipeline::spike_count`]).
+    /// Spikes of all networks (see [`Pipeline::spike_count`]).
     pub fn spike_count(&self) -> u64 {
         each_layout_pipeline!(self, p => p.spike_count())
     }
@@ -639,12 +670,12 @@ impl Built<'_> {
         each_pipeline!(self, p => p.pool_use())
     }
 
-    /// Unit inputs lost to a full unit pool (both networks of the spike readout).
+    /// Unit inputs lost to a full unit pool (all networks of the spike readout).
     pub fn pool_full(&self) -> u64 {
         each_pipeline!(self, p => p.pool_full())
     }
 
-    /// Spikes of the network, and of the slow units' network for the spike readout.
+    /// Spikes of the network, and of the side networks for the spike readout.
     pub fn spike_count(&self) -> u64 {
         each_pipeline!(self, p => p.spike_count())
     }

@@ -273,12 +273,21 @@ fn the_settings_ask_for_the_readouts_memory() {
     };
     let needs = settings.storage().unwrap();
     let layout = Dense::new(W, H, 2).unwrap();
-    // Two networks (the paper's units and the slow ones), each with its cells, units and the
-    // readout's memory.
-    assert_eq!(needs.cells, 2 * layout.cell_count());
-    assert_eq!(needs.unit_pairs, 2 * layout.cell_count());
-    assert_eq!(needs.spike_cells, 2 * Spikes::<Dense>::cells_for(&layout));
-    assert_eq!(needs.spike_cells, 2 * layout.cell_count());
+    // Three networks (the paper's units, the slow ones and the near ones), each with its
+    // cells, units and the readout's memory.
+    assert!(calibrated::has_near(&layout));
+    assert_eq!(Settings::spike_networks(&layout), 3);
+    assert_eq!(needs.cells, 3 * layout.cell_count());
+    assert_eq!(needs.unit_pairs, 3 * layout.cell_count());
+    assert_eq!(needs.spike_cells, 3 * Spikes::<Dense>::cells_for(&layout));
+    assert_eq!(needs.spike_cells, 3 * layout.cell_count());
+    // At stride 1 there are no near units: two networks.
+    let stride_1 = Settings {
+        stride: 1,
+        ..settings
+    };
+    let layout_1 = Dense::new(W, H, 1).unwrap();
+    assert_eq!(stride_1.storage().unwrap().cells, 2 * layout_1.cell_count());
     assert_eq!(SpikeCell::BYTES, 28);
     // Without the readout's memory the pipeline is refused, not built short.
     let mut cells = vec![Cell::default(); needs.cells];

@@ -32,33 +32,54 @@ pub struct YawSample {
     pub flags: u8,
 }
 
+/// The spiking networks a readout may read beside the main one: the same layout and events.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    /// Slow units: `tau_F` = [`crate::params::TAU_SLOW_US`].
+    Slow,
+    /// Near units: the FAC pixel one pixel from the TRG pixel
+    /// ([`crate::network::Network::near_units`]).
+    Near,
+}
+
 /// A readout: consumes the network's output, produces a value at each output time.
 pub trait Readout: NetSink {
     /// The value at output time `t_us` (called once per period, in order) and its flags.
     fn output(&mut self, t_us: u32) -> (I16F16, u8);
 
-    /// Whether the readout also reads a second network of slow units (the same layout and
-    /// events, `tau_F` = [`crate::params::TAU_SLOW_US`]); the pipeline then runs one and hands
-    /// its spikes to [`Readout::slow_spikes`].
+    /// Whether the readout also reads a network of slow units ([`Side::Slow`]); the pipeline
+    /// then runs one and hands its spikes to [`Readout::side_spikes`].
     const SLOW_UNITS: bool = false;
 
-    /// A run of spikes of one slow unit (as [`NetSink::spikes`] for the main network).
-    fn slow_spikes(&mut self, _cell: u32, _dir: Dir, _times: &[u32]) {}
+    /// Whether the readout also reads a network of near units ([`Side::Near`]), when the
+    /// layout's stride is above 1; the pipeline then runs one and hands its spikes to
+    /// [`Readout::side_spikes`].
+    const NEAR_UNITS: bool = false;
+
+    /// A run of spikes of one unit of the `side` network (as [`NetSink::spikes`] for the main
+    /// network).
+    fn side_spikes(&mut self, _side: Side, _cell: u32, _dir: Dir, _times: &[u32]) {}
 }
 
-/// The sink the slow units' network writes to: the readout's [`Readout::slow_spikes`].
-pub struct SlowSide<'r, R: Readout>(pub &'r mut R);
+/// The sink a side network writes to: the readout's [`Readout::side_spikes`].
+pub struct SideSink<'r, R: Readout> {
+    /// The readout.
+    pub readout: &'r mut R,
+    /// Which network writes.
+    pub side: Side,
+}
 
-impl<R: Readout> NetSink for SlowSide<'_, R> {
+impl<R: Readout> NetSink for SideSink<'_, R> {
     const SPIKES: bool = true;
 
     #[inline]
     fn spike(&mut self, s: Spike) {
-        self.0.slow_spikes(s.cell, s.dir, &[s.t_us]);
+        self.readout
+            .side_spikes(self.side, s.cell, s.dir, &[s.t_us]);
     }
 
     #[inline]
     fn spikes(&mut self, cell: u32, dir: Dir, times: &[u32]) {
-        self.0.slow_spikes(cell, dir, times);
+        self.readout.side_spikes(self.side, cell, dir, times);
     }
 }

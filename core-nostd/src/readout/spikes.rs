@@ -71,18 +71,33 @@
 
 use fixed::types::I16F16;
 
-use super::calibrated::{Calibration, SLOW_TAU_A_US};
+use super::calibrated::{has_near, Calibration, SLOW_TAU_A_US};
 use super::field::{Field, Population};
 use super::shared::{
     field_over, min_burst_drive, window_log2_s, OutputGate, RateDecoder, LOG2_1E6, WARMUP_US,
 };
-use super::Readout;
+use super::stride_choice::{Stride, StrideChoice};
+use super::{Readout, Side};
 use crate::layout::{Dir, Layout};
 use crate::log2::{exp2_q16, log2_q16};
 use crate::network::{NetSink, Spike};
 use crate::params::Trace;
 use crate::time::EventTime;
 use crate::unit::Kernel;
+
+/// `log2` (Q16.16) of the largest share of its ceiling (`w_T` times the pixel's own trace) a
+/// near unit's drive is read at: 0.9, a crossing of one pixel in `tau_F ln(10/9)` (2.1 ms for
+/// the paper's units). Closer to the ceiling a drive decoded from spikes is not precise enough:
+/// `dt` is `tau_F` times the logarithm of that share, and the own trace rebuilt from decoded
+/// onsets is good to a few per cent, so the fastest edges would read slow. Those edges cross
+/// two pixels in under twice that time, and the layout's units time them instead.
+pub const NEAR_DRIVE_SHARE_LOG2: i32 = -9962;
+
+/// `log2` (Q16.16) of the share of its ceiling at which a decoded drive is read, at most: 0.99
+/// (a crossing in `tau_F / 100`). A drive decoded at or above its ceiling is an edge faster than
+/// the decode resolves (its error, not a crossing in no time): counted as the fastest, not
+/// dropped, since dropping the fastest edges would bias the rate low.
+pub const AT_CEILING_LOG2: i32 = -950;
 
 /// `log2(e)` in Q32.
 const LOG2E_Q32: u64 = 6_196_328_019;
@@ -537,6 +552,8 @@ impl BurstDecoder {
 /// with), its per-pixel memory (borrowed) and the decodes waiting for a twin's answer.
 struct Decoding<'a> {
     population: Population,
+    /// Which units' FAC pixel distance: the near units' (1 px) or the layout's stride.
+    stride: Stride,
     kernel: &'a Kernel,
     decoder: BurstDecoder,
     /// `log2(tau_F)` (µs, Q16.16).
@@ -595,6 +612,10 @@ struct Target<L: Layout> {
     samples: u64,
     /// Decodes dropped because the twin unit answered the same TRG event about as strongly.
     ambiguous: u64,
+    /// Whether the near units' decodes or the layout's go to the field.
+    stride: StrideChoice,
+    /// `log2` (Q16.16, s) of the shortest crossing of one pixel read from the near units.
+    near_floor_log2_s: i32,
 }
 
 /// The spike readout's state: each population's decoding, the field's histograms and the
@@ -605,15 +626,18 @@ pub struct Spikes<'a, L: Layout> {
     target: Target<L>,
     /// The paper's units (the main network).
     fast: Decoding<'a>,
-    /// The slow units (the pipeline's second network), if read.
+    /// The slow units (a side network), if read.
     slow: Option<Decoding<'a>>,
+    /// The near units (a side network of the paper's units with FAC pixels one pixel away),
+    /// if read.
+    near: Option<Decoding<'a>>,
     /// Cells swept per output, and the next one.
     sweep: (usize, usize),
 }
 
 impl<'a> Decoding<'a> {
     fn new(
-        population: Population,
+        (population, stride): (Population, Stride),
         kernel: &'a Kernel,
         cells: &'a mut [SpikeCell],
         slow_rule: Option<SlowRule>,
@@ -622,6 +646,7 @@ impl<'a> Decoding<'a> {
         let p = kernel.params();
         Self {
             population,
+            stride,
             kernel,
             decoder: BurstDecoder::new(kernel),
             log2_tau_fac: log2_q16(u64::from(p.tau_fac_us), 0),
@@ -817,22 +842,53 @@ impl<'a> Decoding<'a> {
         // dt = -tau_F ln(D / (w_T own)), then the rotation at the pixel's column.
         let l = l2d
             .saturating_sub(target.log2_w_trg)
-            .saturating_sub(log2_q16(u64::from(c.own().to_bits()), 27));
+            .saturating_sub(log2_q16(u64::from(c.own().to_bits()), 27))
+            .min(AT_CEILING_LOG2);
         let Some(l2dt) = RateDecoder::log2_dt_s(l, self.log2_tau_fac) else {
             return true;
         };
-        if let Some(rule) = self.slow_rule {
-            if c.busy() || l2dt <= rule.reach_log2_s {
-                // The paper's units time this edge: it crossed within their reach, or the
-                // pixel had another onset shortly before.
-                return true;
+        let (x, y) = target.layout.pixel(cell);
+        let positive = u == Dir::RightToLeft.slot();
+        let chosen = target.stride.choice();
+        match self.slow_rule {
+            Some(rule) => {
+                // The paper's units reach twice as far in time over two pixels as over one.
+                let reach = match chosen {
+                    Stride::Near => rule.reach_log2_s.saturating_add(1 << 16),
+                    Stride::Layout => rule.reach_log2_s,
+                };
+                if c.busy() || l2dt <= reach {
+                    // The paper's units time this edge: it crossed within their reach, or the
+                    // pixel had another onset shortly before.
+                    return true;
+                }
+            }
+            None => {
+                // The paper's units of either stride: counted for the choice between them.
+                // With the near units chosen they time the edges slower than the floor and
+                // the layout's units the faster ones (see [`NEAR_DRIVE_SHARE_LOG2`]).
+                if StrideChoice::counts_row(y) {
+                    let region = target.field.geometry().region(x, y);
+                    target.stride.add(self.stride, region, positive);
+                }
+                let read = match (chosen, self.stride) {
+                    (Stride::Layout, Stride::Layout) => true,
+                    (Stride::Layout, Stride::Near) => false,
+                    (Stride::Near, Stride::Near) => l2dt >= target.near_floor_log2_s,
+                    (Stride::Near, Stride::Layout) => {
+                        l2dt < target.near_floor_log2_s.saturating_add(1 << 16)
+                    }
+                };
+                if !read {
+                    return true;
+                }
             }
         }
-        let (x, y) = target.layout.pixel(cell);
-        let l2 = target.rates.rotation_rate(l2dt, x);
-        target
-            .field
-            .add(self.population, x, y, l2, u == Dir::RightToLeft.slot());
+        let l2 = match self.stride {
+            Stride::Near => target.rates.near_rotation_rate(l2dt, x),
+            Stride::Layout => target.rates.rotation_rate(l2dt, x),
+        };
+        target.field.add(self.population, x, y, l2, positive);
         target.samples += 1;
         true
     }
@@ -925,6 +981,12 @@ impl<'a, L: Layout> Spikes<'a, L> {
                 decode_from: None,
                 samples: 0,
                 ambiguous: 0,
+                stride: StrideChoice::new(false),
+                near_floor_log2_s: RateDecoder::log2_dt_s(
+                    NEAR_DRIVE_SHARE_LOG2,
+                    log2_q16(u64::from(p.tau_fac_us), 0),
+                )
+                .unwrap_or(i32::MIN),
             },
             // The warm-up's onsets are not decoded; the first onsets after it are decoded up to
             // `tau` later, and the histograms fill over `tau_A`.
@@ -934,8 +996,9 @@ impl<'a, L: Layout> Spikes<'a, L> {
                     .saturating_add(p.tau_trg_us)
                     .saturating_add(cal.tau_a_us),
             ),
-            fast: Decoding::new(Population::Fast, kernel, cells, None),
+            fast: Decoding::new((Population::Fast, Stride::Layout), kernel, cells, None),
             slow: None,
+            near: None,
             sweep: (per_output, 0),
             cal,
         }
@@ -949,8 +1012,42 @@ impl<'a, L: Layout> Spikes<'a, L> {
         let len = Self::cells_for(&self.target.layout).min(cells.len());
         let cells = cells.get_mut(..len).unwrap_or_default();
         let rule = SlowRule::beside(self.fast.kernel);
-        self.slow = Some(Decoding::new(Population::Slow, kernel, cells, Some(rule)));
+        self.slow = Some(Decoding::new(
+            (Population::Slow, Stride::Layout),
+            kernel,
+            cells,
+            Some(rule),
+        ));
         self
+    }
+
+    /// The same readout also decoding the near units (the paper's units with their FAC pixel
+    /// one pixel away: [`crate::network::Network::near_units`]), with their memory in `cells`
+    /// (at least [`Spikes::cells_for`]), if the layout has them
+    /// ([`has_near`](super::calibrated::has_near)). Their decodes or the layout's units' go to
+    /// the field's paper's-units population, as the calibrated readout chooses
+    /// ([`stride_choice`](super::stride_choice)).
+    pub fn with_near_units(mut self, cells: &'a mut [SpikeCell]) -> Self {
+        if !has_near(&self.target.layout) {
+            return self;
+        }
+        let len = Self::cells_for(&self.target.layout).min(cells.len());
+        let cells = cells.get_mut(..len).unwrap_or_default();
+        let kernel = self.fast.kernel;
+        self.near = Some(Decoding::new(
+            (Population::Fast, Stride::Near),
+            kernel,
+            cells,
+            None,
+        ));
+        self.target.stride = StrideChoice::new(true);
+        self
+    }
+
+    /// Whether the near units are read ([`Spikes::with_near_units`] on a layout that has
+    /// them).
+    pub fn reads_near_units(&self) -> bool {
+        self.near.is_some()
     }
 
     /// The settings.
@@ -979,13 +1076,18 @@ impl<L: Layout> NetSink for Spikes<'_, L> {
 
 impl<L: Layout> Readout for Spikes<'_, L> {
     const SLOW_UNITS: bool = true;
+    const NEAR_UNITS: bool = true;
 
-    fn slow_spikes(&mut self, cell: u32, dir: Dir, times: &[u32]) {
-        let Some(slow) = self.slow.as_mut() else {
+    fn side_spikes(&mut self, side: Side, cell: u32, dir: Dir, times: &[u32]) {
+        let decoding = match side {
+            Side::Slow => self.slow.as_mut(),
+            Side::Near => self.near.as_mut(),
+        };
+        let Some(decoding) = decoding else {
             return;
         };
         for &t in times {
-            slow.spike(&mut self.target, cell, dir, t);
+            decoding.spike(&mut self.target, cell, dir, t);
         }
     }
 
@@ -1004,16 +1106,23 @@ impl<L: Layout> Readout for Spikes<'_, L> {
         // Every spike up to `t_us` is in: decide what waits for a twin that has answered or can
         // no longer answer.
         self.fast.settle(target, t_us);
-        if let Some(slow) = self.slow.as_mut() {
-            slow.settle(target, t_us);
+        for side in [self.slow.as_mut(), self.near.as_mut()]
+            .into_iter()
+            .flatten()
+        {
+            side.settle(target, t_us);
         }
         // Forget bursts and onsets too old to matter (a few cells per output).
         let (per_output, next) = self.sweep;
         let after = self.fast.sweep(t_us, per_output, next);
-        if let Some(slow) = self.slow.as_mut() {
-            slow.sweep(t_us, per_output, next);
+        for side in [self.slow.as_mut(), self.near.as_mut()]
+            .into_iter()
+            .flatten()
+        {
+            side.sweep(t_us, per_output, next);
         }
         self.sweep = (per_output, after);
+        target.stride.age(self.cal.period_us);
         self.gate.output(&mut target.field)
     }
 }
