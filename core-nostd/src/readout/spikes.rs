@@ -48,6 +48,22 @@
 //! when the pixel's previous decoded onset came more than `tau_F ln 10` (46 ms: the paper's
 //! units' FAC trace is down to a tenth) before it.
 //!
+//! # Near units
+//! As the calibrated readout, the spike readout reads near units where the layout has them:
+//! the pipeline runs a third network of the paper's units with their FAC pixel one pixel from
+//! the TRG pixel ([`crate::network::Network::near_units`]), whose spikes are decoded the same
+//! way (the rate then reads over one pixel), and the same rule
+//! ([`stride_choice`](super::stride_choice)), fed from both networks' decodes, chooses between
+//! them. One thing differs: a drive decoded from spikes is good to about 0.1 %, and the own
+//! trace it is divided by, rebuilt from decoded onsets, to a few per cent, so close to its
+//! ceiling (`w_T` times the own trace) the decoded crossing time is mostly error. With the near
+//! units chosen they are therefore read only for drives up to [`NEAR_DRIVE_SHARE_LOG2`] of the
+//! ceiling (a one-pixel crossing of at least 2.1 ms) and the layout's units for the faster
+//! edges (a two-pixel crossing under twice that); and a drive decoded at or above its ceiling
+//! counts as the fastest crossing the decode resolves ([`AT_CEILING_LOG2`]) instead of being
+//! dropped, which would bias fast turns low. The slow units' reach doubles when the near units
+//! are read (one pixel in 54 ms is two in 108 ms).
+//!
 //! Causal: the network hands a spike at `t` over by the first output time at or after `t`,
 //! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
 //! second spike (1-15 ms after the TRG event). Warm-up: TRG events in the first
@@ -56,8 +72,8 @@
 //! to `tau`, the histograms `tau_A` to fill).
 //!
 //! # State
-//! One [`SpikeCell`] per pixel of the layout and population, from the caller (28 bytes, on top
-//! of the spiking networks' own state): each unit's burst in progress (where its membrane last
+//! One [`SpikeCell`] per pixel of the layout and network (three networks: 84 bytes per pixel),
+//! from the caller (28 bytes each, on top of the spiking networks' own state): each unit's burst in progress (where its membrane last
 //! started charging, 24 bits of µs; what the last interval said; 8 bytes), the pixel's last
 //! decoded onset and own trace, each unit's decoded drive for it, and its link in the queue of
 //! decodes waiting for a twin's answer. Nothing is ever full and
@@ -1024,7 +1040,7 @@ impl<'a, L: Layout> Spikes<'a, L> {
     /// The same readout also decoding the near units (the paper's units with their FAC pixel
     /// one pixel away: [`crate::network::Network::near_units`]), with their memory in `cells`
     /// (at least [`Spikes::cells_for`]), if the layout has them
-    /// ([`has_near`](super::calibrated::has_near)). Their decodes or the layout's units' go to
+    /// ([`has_near`]). Their decodes or the layout's units' go to
     /// the field's paper's-units population, as the calibrated readout chooses
     /// ([`stride_choice`](super::stride_choice)).
     pub fn with_near_units(mut self, cells: &'a mut [SpikeCell]) -> Self {
