@@ -37,7 +37,7 @@
 //! # Slow units
 //! The paper's units (`tau_F` = 20 ms) need a drive of about `w_F / 14.7` to burst, so edges
 //! slower than ~47 ms per stride (a 2-spike burst) give them nothing to decode: below about
-//! 0.2 rad/s on a DAVIS346. The pipeline therefore runs a second network over the same layout
+//! 0.2 rad/s on a DAVIS346. The pipeline therefore runs another network over the same layout
 //! and events, of slow units ([`Kernel::SLOW`]: `tau_F` = [`crate::params::TAU_SLOW_US`], the
 //! same TRG trace and membrane), whose spikes this readout decodes the same way (the drive then
 //! reads with their `tau_F`) into the field's slow population, as the calibrated readout's slow

@@ -72,8 +72,8 @@ pub struct RunFlags {
     #[arg(long)]
     pub tau_a_ms: Option<f64>,
     /// Spiking readouts: keep unit state in a pool of N unit pairs, as a microcontroller does
-    /// (default: one pair per cell; the spike readout's two networks, the paper's units and
-    /// the slow ones, get N each). Inputs that find it full are lost, counted in the summary
+    /// (default: one pair per cell; the spike readout's networks, the paper's units, the slow
+    /// ones and the near ones, get N each). Inputs that find it full are lost, counted in the summary
     /// and flagged OVERFLOW (bit 2) on the next sample.
     #[arg(long, value_name = "N")]
     pub unit_pool: Option<u32>,
