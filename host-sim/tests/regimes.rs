@@ -6,6 +6,11 @@
 //! while the camera turns at 0.05 rad/s or more, and for a camera that does not turn, the RMS
 //! output with the samples flagged "no evidence" as 0 (what a consumer that drops them sees).
 //!
+//! The spike readout runs on the same scenes: its RMSE stays within a bound of the calibrated
+//! readout's (today's ratio with a margin: car 1.25, drone 1.50, hover 1.10, rotation 1.00; the
+//! issue's 1.25 is not met on the drone, README: "Three readouts"), and on the static scene its
+//! RMS output within the same 0.03 rad/s.
+//!
 //! The bounds are what the readout reaches today with a margin (README: "Flight regimes"; on
 //! these scenes it reaches correlation 0.993 / 0.979 / 0.974 / 0.996, RMSE 6.2 / 13.4 / 13.7
 //! / 6.1 % of peak for car / drone / hover / rotation, "no evidence" while turning 1.2-3.6 %,
@@ -16,8 +21,9 @@
 use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
 use host_sim::formats::{self, Format, Recording};
-use host_sim::pipeline::{run_pipeline, RunOptions};
+use host_sim::pipeline::{run_pipeline, ReadoutKind, RunOptions};
 use host_sim::synth::regime::{preset, Regime};
+use host_sim::synth::truth::GtRow;
 use host_sim::synth::{generate, Preset};
 use host_sim::testdata::shared_data;
 
@@ -35,8 +41,9 @@ struct Figures {
     rms_out: f64,
 }
 
-/// Renders `regime` (seed, duration in s) and runs the product's pipeline on it.
-fn scene(regime: Regime, seed: u64, duration_s: f64) -> Figures {
+/// Renders `regime` (seed, duration in s) and runs the product's pipeline on it: the
+/// calibrated readout's figures, and the spike readout's.
+fn scene(regime: Regime, seed: u64, duration_s: f64) -> (Figures, Figures) {
     let cfg = preset(regime, seed, duration_s, Preset::Davis346);
     let seq = generate(&cfg).expect("render");
     let rec = Recording {
@@ -52,21 +59,30 @@ fn scene(regime: Regime, seed: u64, duration_s: f64) -> Figures {
         gyro: None,
         format: Format::Csv,
     };
-    let out = run_pipeline(&RunOptions::default(), &rec).expect("run");
+    let spikes = RunOptions {
+        readout: ReadoutKind::Spikes,
+        ..RunOptions::default()
+    };
+    let run = |opts: &RunOptions| figures(&run_pipeline(opts, &rec).expect("run").samples, &seq.gt);
+    (run(&RunOptions::default()), run(&spikes))
+}
+
+/// The figures of a run's `(t_s, value, flags)` samples against the ground truth.
+fn figures(samples: &[(f64, f64, u8)], gt: &[GtRow]) -> Figures {
     // RMSE and correlation take the output as it is, flagged or not (as `host-sim eval` does).
-    let est = Series::from_pairs(&out.samples.iter().map(|s| (s.0, s.1)).collect::<Vec<_>>());
+    let est = Series::from_pairs(&samples.iter().map(|s| (s.0, s.1)).collect::<Vec<_>>());
     let flags = Series::from_pairs(
-        &out.samples
+        &samples
             .iter()
             .map(|s| (s.0, f64::from(s.2)))
             .collect::<Vec<_>>(),
     );
-    let t: Vec<f64> = seq.gt.iter().map(|g| g.t_s).collect();
+    let t: Vec<f64> = gt.iter().map(|g| g.t_s).collect();
     let at = resample(&est, &t, Resample::Hold);
     let fl = resample(&flags, &t, Resample::Hold);
     let (mut e, mut g, mut moving, mut silent) = (Vec::new(), Vec::new(), 0usize, 0usize);
     let mut answered_sq = 0.0;
-    for ((v, f), row) in at.iter().zip(&fl).zip(&seq.gt) {
+    for ((v, f), row) in at.iter().zip(&fl).zip(gt) {
         if let (Some(v), Some(f)) = (v, f) {
             let no_evidence = (*f as u8) & NO_EVIDENCE != 0;
             e.push(*v);
@@ -120,24 +136,36 @@ fn check_turning(f: &Figures, corr: f64, rmse_rel: f64, no_evidence: f64) {
     );
 }
 
+/// The spike readout's figures `s` against the calibrated readout's `f` on the same scene: its
+/// RMSE at most `ratio` times theirs.
+fn check_spikes(name: &str, f: &Figures, s: &Figures, ratio: f64) {
+    report(&format!("{name}, spike readout"), s);
+    let r = s.rmse / f.rmse;
+    eprintln!("{name}: spike / calibrated RMSE {r:.2}");
+    assert!(r <= ratio, "{name}: spike / calibrated RMSE {r:.2}");
+}
+
 #[test]
 fn car_forward_motion() {
-    let f = scene(Regime::Car, 3, 3.0);
+    let (f, s) = scene(Regime::Car, 3, 3.0);
     report("car", &f);
     check_turning(&f, 0.97, 0.1, 0.1);
+    check_spikes("car", &f, &s, 1.35);
 }
 
 #[test]
 fn drone_forward_flight() {
-    let f = scene(Regime::Drone, 3, 2.5);
+    let (f, s) = scene(Regime::Drone, 3, 2.5);
     report("drone", &f);
     check_turning(&f, 0.95, 0.17, 0.1);
+    check_spikes("drone", &f, &s, 1.6);
 }
 
 #[test]
 fn hover_slow_yaw() {
-    let f = scene(Regime::Hover, 3, 4.0);
+    let (f, s) = scene(Regime::Hover, 3, 4.0);
     report("hover", &f);
+    check_spikes("hover", &f, &s, 1.2);
     assert!(f.corr >= 0.95, "correlation {:.3}", f.corr);
     assert!(f.rmse <= 0.025, "RMSE {:.3} rad/s", f.rmse);
     assert!(
@@ -149,16 +177,23 @@ fn hover_slow_yaw() {
 
 #[test]
 fn pure_rotation() {
-    let f = scene(Regime::Rotation, 3, 3.0);
+    let (f, s) = scene(Regime::Rotation, 3, 3.0);
     report("rotation", &f);
     check_turning(&f, 0.98, 0.08, 0.08);
+    check_spikes("rotation", &f, &s, 1.1);
 }
 
 #[test]
 fn static_camera_moving_objects() {
-    let f = scene(Regime::Objects, 3, 3.0);
+    let (f, s) = scene(Regime::Objects, 3, 3.0);
     report("objects", &f);
+    report("objects, spike readout", &s);
     assert!(f.rms_out <= 0.03, "RMS output {:.3} rad/s", f.rms_out);
+    assert!(
+        s.rms_out <= 0.03,
+        "spike readout: RMS output {:.3} rad/s",
+        s.rms_out
+    );
 }
 
 /// The real DAVIS346 recording: a static camera (gyro below 0.02 rad/s) and an object crossing
