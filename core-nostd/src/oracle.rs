@@ -1333,10 +1333,8 @@ impl SpikePopulation {
         if !add || t_trg < target.decode_from {
             return true;
         }
-        // At most `AT_CEILING` of the ceiling: faster than that counts as the fastest.
-        let at_ceiling = (f64::from(crate::readout::spikes::AT_CEILING_LOG2) / 65_536.0).exp2();
-        let ratio = (d / (p.w_trg * own)).min(at_ceiling);
-        if ratio.is_nan() || ratio <= 0.0 {
+        let ratio = d / (p.w_trg * own);
+        if !(ratio > 0.0 && ratio < 1.0) {
             return true;
         }
         let dt_s = -p.tau_fac * ratio.ln() * 1e-6;
@@ -1387,7 +1385,7 @@ impl SpikePopulation {
 /// Longest interval (µs) over which an early spike is decoded (as the fixed readout keeps it).
 const M_MAX_F64: f64 = 65_528.0;
 /// Decoded TRG events of one pixel at most this far apart (µs) are one onset.
-const SAME_ONSET_F64: f64 = 50.0;
+const SAME_ONSET_F64: f64 = crate::readout::spikes::SAME_ONSET_US as f64;
 
 /// [`crate::readout::field::sign_agreement`] in f64 (samples): `(P - N)² / (P + N)` less
 /// [`crate::readout::field::RANDOM_AGREEMENT`], at least 0; 0 for an empty region.

@@ -59,10 +59,8 @@
 //! ceiling (`w_T` times the own trace) the decoded crossing time is mostly error. With the near
 //! units chosen they are therefore read only for drives up to [`NEAR_DRIVE_SHARE_LOG2`] of the
 //! ceiling (a one-pixel crossing of at least 2.1 ms) and the layout's units for the faster
-//! edges (a two-pixel crossing under twice that); and a drive decoded at or above its ceiling
-//! counts as the fastest crossing the decode resolves ([`AT_CEILING_LOG2`]) instead of being
-//! dropped, which would bias fast turns low. The slow units' reach doubles when the near units
-//! are read (one pixel in 54 ms is two in 108 ms).
+//! edges (a two-pixel crossing under twice that). The slow units' reach doubles when the near
+//! units are read (one pixel in 54 ms is two in 108 ms).
 //!
 //! Causal: the network hands a spike at `t` over by the first output time at or after `t`,
 //! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
@@ -109,12 +107,6 @@ use crate::unit::Kernel;
 /// two pixels in under twice that time, and the layout's units time them instead.
 pub const NEAR_DRIVE_SHARE_LOG2: i32 = -9962;
 
-/// `log2` (Q16.16) of the share of its ceiling at which a decoded drive is read, at most: 0.99
-/// (a crossing in `tau_F / 100`). A drive decoded at or above its ceiling is an edge faster than
-/// the decode resolves (its error, not a crossing in no time): counted as the fastest, not
-/// dropped, since dropping the fastest edges would bias the rate low.
-pub const AT_CEILING_LOG2: i32 = -950;
-
 /// `log2(e)` in Q32.
 const LOG2E_Q32: u64 = 6_196_328_019;
 /// `log2(e)` in Q16.
@@ -126,8 +118,12 @@ const NOT_QUEUED: u32 = u32::MAX;
 const QUEUE_END: u32 = u32::MAX - 1;
 
 /// Two decodes of one pixel whose TRG event times differ by at most this (µs) answer the
-/// same onset (decoded times are within a few µs of the true ones, rarely tens).
-const SAME_ONSET_US: u32 = 50;
+/// same onset. Decoded times are mostly within a few µs of the true ones, but a decode during
+/// a burst can be off by more than 50 µs, and at 50 µs one onset decoded by both units was
+/// often counted twice on busy scenes: the own trace grew by a phantom onset and fast turns
+/// read 15-25 % low (drone scenes). Distinct onsets of one pixel come at least ~1 ms apart (an
+/// edge crossing a pixel at 2 rad/s on a DAVIS346 takes 1.4-2.2 ms).
+pub const SAME_ONSET_US: u32 = 250;
 
 /// [`SpikeCell::onset`]'s bit saying that the onset before the last one came within the busy
 /// window before it.
@@ -858,8 +854,7 @@ impl<'a> Decoding<'a> {
         // dt = -tau_F ln(D / (w_T own)), then the rotation at the pixel's column.
         let l = l2d
             .saturating_sub(target.log2_w_trg)
-            .saturating_sub(log2_q16(u64::from(c.own().to_bits()), 27))
-            .min(AT_CEILING_LOG2);
+            .saturating_sub(log2_q16(u64::from(c.own().to_bits()), 27));
         let Some(l2dt) = RateDecoder::log2_dt_s(l, self.log2_tau_fac) else {
             return true;
         };
