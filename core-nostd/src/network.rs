@@ -650,11 +650,6 @@ impl<'a, L: Layout> Network<'a, L> {
         self
     }
 
-    /// FAC-to-TRG distance of the units (px).
-    pub fn stride(&self) -> u16 {
-        self.stride
-    }
-
     /// The kernel.
     pub fn kernel(&self) -> &Kernel {
         self.kernel

@@ -460,6 +460,28 @@ struct OracleStrideChoice {
 }
 
 impl OracleStrideChoice {
+    /// No decodes yet; the near units decode first if the layout has them (`near`).
+    fn new(near: bool) -> Self {
+        Self {
+            counts: [[[0.0; 2]; crate::readout::field::REGIONS]; 2],
+            near,
+            settled: 0.0,
+            outputs: 0,
+        }
+    }
+
+    /// One decode of the paper's units (`near`: of the near units) in `region`, with its sign.
+    fn add(&mut self, near: bool, region: usize, positive: bool) {
+        if let Some(c) = self
+            .counts
+            .get_mut(usize::from(!near))
+            .and_then(|r| r.get_mut(region))
+            .and_then(|c| c.get_mut(usize::from(positive)))
+        {
+            *c += 1.0;
+        }
+    }
+
     fn agreement(&self, stride: usize) -> f64 {
         self.counts.get(stride).map_or(0.0, |regions| {
             regions.iter().map(|&[n, p]| sign_agreement(n, p)).sum()
@@ -513,12 +535,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
         let fields = [field(tau_a_us), field(slow_tau)];
         let twins = crate::readout::calibrated::has_twins(&layout);
-        let stride = OracleStrideChoice {
-            counts: [[[0.0; 2]; crate::readout::field::REGIONS]; 2],
-            near: crate::readout::calibrated::has_near(&layout),
-            settled: 0.0,
-            outputs: 0,
-        };
+        let stride = OracleStrideChoice::new(crate::readout::calibrated::has_near(&layout));
         Self {
             p,
             layout,
@@ -656,17 +673,9 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let [fast_field, _] = &self.fields;
         let region = fast_field.region_index(x, y);
         let counted = crate::readout::stride_choice::StrideChoice::counts_row(y);
-        for (k, decoded) in [near, far].into_iter().enumerate() {
+        for (is_near, decoded) in [(true, near), (false, far)] {
             if let (Some(((_, positive), 0)), true) = (decoded, counted) {
-                if let Some(c) = self
-                    .stride
-                    .counts
-                    .get_mut(k)
-                    .and_then(|r| r.get_mut(region))
-                    .and_then(|c| c.get_mut(usize::from(positive)))
-                {
-                    *c += 1.0;
-                }
+                self.stride.add(is_near, region, positive);
             }
         }
         let (decoded, stride) = if self.stride.near {
@@ -893,12 +902,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             fields,
             twins: crate::readout::calibrated::has_twins(&layout),
             busy_window: p.tau_fac * core::f64::consts::LN_10,
-            stride: OracleStrideChoice {
-                counts: [[[0.0; 2]; crate::readout::field::REGIONS]; 2],
-                near,
-                settled: 0.0,
-                outputs: 0,
-            },
+            stride: OracleStrideChoice::new(near),
             near_floor_s: -p.tau_fac * share.ln() * 1e-6,
             next_out: None,
             decode_from: f64::INFINITY,
@@ -1340,10 +1344,11 @@ impl SpikePopulation {
         let dt_s = -p.tau_fac * ratio.ln() * 1e-6;
         let (x, y) = target.layout.pixel(cell);
         let near_chosen = target.stride.near;
+        // The layout's units take `stride` times as long as the near units over one pixel.
+        let stride = f64::from(target.layout.stride());
         match self.fast_reach_s {
             Some(reach) => {
-                // Over two pixels the paper's units reach twice as far as over one.
-                let reach = if near_chosen { 2.0 * reach } else { reach };
+                let reach = if near_chosen { stride * reach } else { reach };
                 if busy || dt_s <= reach {
                     // The paper's units time this edge.
                     return true;
@@ -1352,21 +1357,12 @@ impl SpikePopulation {
             None => {
                 if crate::readout::stride_choice::StrideChoice::counts_row(y) {
                     let region = target.field.region_index(x, y);
-                    let k = usize::from(!self.near);
-                    if let Some(c) = target
-                        .stride
-                        .counts
-                        .get_mut(k)
-                        .and_then(|r| r.get_mut(region))
-                        .and_then(|c| c.get_mut(u))
-                    {
-                        *c += 1.0;
-                    }
+                    target.stride.add(self.near, region, u == 1);
                 }
                 let read = match (near_chosen, self.near) {
                     (false, near) => !near,
                     (true, true) => dt_s >= target.near_floor_s,
-                    (true, false) => dt_s < 2.0 * target.near_floor_s,
+                    (true, false) => dt_s < stride * target.near_floor_s,
                 };
                 if !read {
                     return true;

@@ -94,9 +94,13 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
             .chain(self.sides.near.as_ref())
     }
 
-    /// Runs `f` on each side network that runs, with the sink it writes to.
+    /// Runs `f` on each side network that runs, with the sink it writes to (nothing at all,
+    /// at compile time, for readouts that read none).
     #[inline]
     fn each_side(&mut self, mut f: impl FnMut(&mut Network<'a, L>, &mut SideSink<'_, R>)) {
+        if !(R::SLOW_UNITS || R::NEAR_UNITS) {
+            return;
+        }
         let Self { sides, readout, .. } = self;
         for (net, side) in [(&mut sides.slow, Side::Slow), (&mut sides.near, Side::Near)] {
             if let Some(net) = net.as_mut() {
@@ -141,9 +145,7 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         }
         self.last_event = t;
         self.net.event(ev, &mut self.readout);
-        if R::SLOW_UNITS || R::NEAR_UNITS {
-            self.each_side(|net, sink| net.event(ev, sink));
-        }
+        self.each_side(|net, sink| net.event(ev, sink));
     }
 
     /// Moves the clock to `now_us` without an event, emitting every sample due up to it.
@@ -157,9 +159,7 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     pub fn finish<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
         self.poll(now_us, out);
         self.net.flush(now_us, &mut self.readout);
-        if R::SLOW_UNITS || R::NEAR_UNITS {
-            self.each_side(|net, sink| net.flush(now_us, sink));
-        }
+        self.each_side(|net, sink| net.flush(now_us, sink));
     }
 
     /// Emits samples at grid times `T < t` (or `T <= t` when `inclusive`).
@@ -169,9 +169,7 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         };
         while t.is_after(next) || (inclusive && t == next) {
             self.net.tick(next.as_us(), &mut self.readout);
-            if R::SLOW_UNITS || R::NEAR_UNITS {
-                self.each_side(|net, sink| net.tick(next.as_us(), sink));
-            }
+            self.each_side(|net, sink| net.tick(next.as_us(), sink));
             let (yaw_rate, mut f) = self.readout.output(next.as_us());
             if next.elapsed_since(self.last_event) > STALE_AFTER_US {
                 f |= flags::STALE;

@@ -110,6 +110,12 @@ impl RateDecoder {
             .saturating_sub(log2_q16(g, 16))
     }
 
+    /// `log2` of the layout's stride (px, Q16.16): how much longer the layout's units' crossing
+    /// takes than the near units' one-pixel crossing.
+    pub fn log2_stride(&self) -> i32 {
+        self.log2_stride
+    }
+
     /// `log2 |w|` (Q16.16) of a crossing of one pixel (the near units') in `2^log2_dt_s` s at
     /// column `x`.
     pub fn near_rotation_rate(&self, log2_dt_s: i32, x: u16) -> i32 {

@@ -71,8 +71,8 @@
 //!
 //! # State
 //! One [`SpikeCell`] per pixel of the layout and network (three networks: 84 bytes per pixel),
-//! from the caller (28 bytes each, on top of the spiking networks' own state): each unit's burst in progress (where its membrane last
-//! started charging, 24 bits of µs; what the last interval said; 8 bytes), the pixel's last
+//! from the caller (28 bytes each, on top of the spiking networks' own state): each unit's
+//! burst in progress (where its membrane last started charging, 24 bits of µs; what the last interval said; 8 bytes), the pixel's last
 //! decoded onset and own trace, each unit's decoded drive for it, and its link in the queue of
 //! decodes waiting for a twin's answer. Nothing is ever full and
 //! no spike goes untracked: a pool of bursts in progress would not be smaller, as up to 45 %
@@ -626,7 +626,8 @@ struct Target<L: Layout> {
     ambiguous: u64,
     /// Whether the near units' decodes or the layout's go to the field.
     stride: StrideChoice,
-    /// `log2` (Q16.16, s) of the shortest crossing of one pixel read from the near units.
+    /// `log2` (Q16.16, s) of the shortest crossing of one pixel read from the near units
+    /// (with them: [`Spikes::with_near_units`]; `i32::MIN` without).
     near_floor_log2_s: i32,
 }
 
@@ -858,14 +859,17 @@ impl<'a> Decoding<'a> {
         let Some(l2dt) = RateDecoder::log2_dt_s(l, self.log2_tau_fac) else {
             return true;
         };
-        let (x, y) = target.layout.pixel(cell);
         let positive = u == Dir::RightToLeft.slot();
         let chosen = target.stride.choice();
+        // The layout's units take `stride` times as long over their stride as the near units
+        // over one pixel: their reach and the near units' floor, in the layout's terms.
+        let log2_stride = target.rates.log2_stride();
+        let (x, y) = target.layout.pixel(cell);
+        let mut region = None;
         match self.slow_rule {
             Some(rule) => {
-                // The paper's units reach twice as far in time over two pixels as over one.
                 let reach = match chosen {
-                    Stride::Near => rule.reach_log2_s.saturating_add(1 << 16),
+                    Stride::Near => rule.reach_log2_s.saturating_add(log2_stride),
                     Stride::Layout => rule.reach_log2_s,
                 };
                 if c.busy() || l2dt <= reach {
@@ -879,15 +883,16 @@ impl<'a> Decoding<'a> {
                 // With the near units chosen they time the edges slower than the floor and
                 // the layout's units the faster ones (see [`NEAR_DRIVE_SHARE_LOG2`]).
                 if StrideChoice::counts_row(y) {
-                    let region = target.field.geometry().region(x, y);
-                    target.stride.add(self.stride, region, positive);
+                    let r = target.field.geometry().region(x, y);
+                    target.stride.add(self.stride, r, positive);
+                    region = Some(r);
                 }
                 let read = match (chosen, self.stride) {
                     (Stride::Layout, Stride::Layout) => true,
                     (Stride::Layout, Stride::Near) => false,
                     (Stride::Near, Stride::Near) => l2dt >= target.near_floor_log2_s,
                     (Stride::Near, Stride::Layout) => {
-                        l2dt < target.near_floor_log2_s.saturating_add(1 << 16)
+                        l2dt < target.near_floor_log2_s.saturating_add(log2_stride)
                     }
                 };
                 if !read {
@@ -899,7 +904,8 @@ impl<'a> Decoding<'a> {
             Stride::Near => target.rates.near_rotation_rate(l2dt, x),
             Stride::Layout => target.rates.rotation_rate(l2dt, x),
         };
-        target.field.add(self.population, x, y, l2, positive);
+        let region = region.unwrap_or_else(|| target.field.geometry().region(x, y));
+        target.field.add_in(self.population, region, l2, positive);
         target.samples += 1;
         true
     }
@@ -993,11 +999,7 @@ impl<'a, L: Layout> Spikes<'a, L> {
                 samples: 0,
                 ambiguous: 0,
                 stride: StrideChoice::new(false),
-                near_floor_log2_s: RateDecoder::log2_dt_s(
-                    NEAR_DRIVE_SHARE_LOG2,
-                    log2_q16(u64::from(p.tau_fac_us), 0),
-                )
-                .unwrap_or(i32::MIN),
+                near_floor_log2_s: i32::MIN,
             },
             // The warm-up's onsets are not decoded; the first onsets after it are decoded up to
             // `tau` later, and the histograms fill over `tau_A`.
@@ -1045,6 +1047,9 @@ impl<'a, L: Layout> Spikes<'a, L> {
         let len = Self::cells_for(&self.target.layout).min(cells.len());
         let cells = cells.get_mut(..len).unwrap_or_default();
         let kernel = self.fast.kernel;
+        self.target.near_floor_log2_s =
+            RateDecoder::log2_dt_s(NEAR_DRIVE_SHARE_LOG2, self.fast.log2_tau_fac)
+                .unwrap_or(i32::MIN);
         self.near = Some(Decoding::new(
             (Population::Fast, Stride::Near),
             kernel,
@@ -1053,12 +1058,6 @@ impl<'a, L: Layout> Spikes<'a, L> {
         ));
         self.target.stride = StrideChoice::new(true);
         self
-    }
-
-    /// Whether the near units are read ([`Spikes::with_near_units`] on a layout that has
-    /// them).
-    pub fn reads_near_units(&self) -> bool {
-        self.near.is_some()
     }
 
     /// The settings.
