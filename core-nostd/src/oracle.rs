@@ -973,12 +973,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
                 self.with_population(k, |pop, target| pop.settle(target, next));
             }
             self.stride.age(self.period);
-            let warmup = u64::from(
-                (crate::readout::shared::WARMUP_US
-                    + self.pops.first().map_or(0, |p| p.p.tau_trg as u32)
-                    + self.fields[0].tau_a as u32)
-                    .div_ceil(self.period as u32),
-            );
+            let warmup = u64::from(crate::readout::shared::WARMUP_US.div_ceil(self.period as u32));
             let refresh = (crate::readout::shared::REFRESH_US / (self.period as u32).max(1)).max(1);
             if self.phase == 0 {
                 self.last = two_population_estimate(&self.fields, self.twins);

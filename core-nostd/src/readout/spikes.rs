@@ -66,8 +66,10 @@
 //! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
 //! second spike (1-15 ms after the TRG event). Warm-up: TRG events in the first
 //! [`WARMUP_US`] are not decoded (every pixel's first event looks like an onset), and the
-//! outputs say "no evidence" for `WARMUP_US + tau + tau_A` (the first decodes after it take up
-//! to `tau`, the histograms `tau_A` to fill).
+//! outputs say "no evidence" for as long, as the calibrated readout's do; after it the field's
+//! support rules decide when the first decodes answer. (Outputs held back until `WARMUP_US +
+//! tau + tau_A`, 50 ms, cost scenes that start turning: rotation seed 7 read 27 % worse than
+//! the calibrated readout, 10 % with the shared warm-up.)
 //!
 //! # State
 //! One [`SpikeCell`] per pixel of the layout and network (three networks: 84 bytes per pixel),
@@ -1001,14 +1003,9 @@ impl<'a, L: Layout> Spikes<'a, L> {
                 stride: StrideChoice::new(false),
                 near_floor_log2_s: i32::MIN,
             },
-            // The warm-up's onsets are not decoded; the first onsets after it are decoded up to
-            // `tau` later, and the histograms fill over `tau_A`.
-            gate: OutputGate::new(
-                cal.period_us,
-                WARMUP_US
-                    .saturating_add(p.tau_trg_us)
-                    .saturating_add(cal.tau_a_us),
-            ),
+            // The warm-up's onsets are not decoded; after it the field's own rules say when
+            // its first decodes are evidence enough (as for the calibrated readout).
+            gate: OutputGate::new(cal.period_us, WARMUP_US),
             fast: Decoding::new((Population::Fast, Stride::Layout), kernel, cells, None),
             slow: None,
             near: None,
