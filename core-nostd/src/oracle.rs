@@ -431,11 +431,8 @@ pub struct OracleYaw<L: crate::layout::Layout> {
     /// (over at least `SLOW_TAU_A_US`).
     fields: [OracleField; 2],
     next_out: Option<f64>,
-    /// Time of the first output (µs).
-    first_out: f64,
-    /// Outputs since the field was last read, and that reading.
-    phase: u32,
-    last: Option<f64>,
+    /// What each output says.
+    gate: OracleGate,
     last_event: f64,
     /// Whether the layout's units have twins ([`crate::readout::calibrated::has_twins`]).
     twins: bool,
@@ -547,9 +544,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             fac: std::vec![(0.0, 0.0, 0.0, false); n],
             fields,
             next_out: None,
-            first_out: 0.0,
-            phase: 0,
-            last: None,
+            gate: OracleGate::new(period_us),
             last_event: 0.0,
             twins,
             stride,
@@ -581,7 +576,6 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         match self.next_out {
             None => {
                 self.next_out = Some(t + self.period);
-                self.first_out = t + self.period;
             }
             Some(_) => self.emit_until(t, false, out),
         }
@@ -705,39 +699,62 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             return;
         };
         while next < t || (inclusive && next <= t) {
-            let warm = next - self.first_out
-                > f64::from(crate::readout::calibrated::WARMUP_US.div_ceil(self.period as u32))
-                    * self.period
-                    - 0.5 * self.period;
-            let refresh =
-                (crate::readout::calibrated::REFRESH_US / (self.period as u32).max(1)).max(1);
             self.stride.age(self.period);
-            if self.phase == 0 {
-                self.last = self.estimate();
-            }
-            self.phase = (self.phase + 1) % refresh;
-            let est = if warm { self.last } else { None };
-            for field in &mut self.fields {
-                field.age();
-            }
-            let value = est.map_or((0.0, crate::flags::NO_EVIDENCE), |v| (v, 0));
+            let value = self.gate.output(&mut self.fields, self.twins);
             out.push(sample(next, self.last_event, value));
             next += self.period;
         }
         self.next_out = Some(next);
-    }
-
-    /// The estimate of the population whose decodes agree more in sign per unit of its time
-    /// constant (on a layout without twin units, that decodes more); the slow units' scaled
-    /// by their recent share of decodes.
-    fn estimate(&self) -> Option<f64> {
-        two_population_estimate(&self.fields, self.twins)
     }
 }
 
 /// The estimate of the population (0: the paper's units, 1: the slow units) whose decodes
 /// agree more in sign per unit of its time constant (`twins == false`, a layout without twin
 /// units: that decodes more); the slow units' scaled by their recent share of decodes.
+/// [`crate::readout::shared::OutputGate`] in f64: "no evidence" for the first
+/// [`crate::readout::shared::WARMUP_US`], then the field's estimate, read every
+/// [`crate::readout::shared::REFRESH_US`] and repeated between.
+struct OracleGate {
+    /// Outputs still to suppress.
+    warmup_outputs: u32,
+    /// Outputs per reading of the field (at least 1).
+    refresh: u32,
+    /// Outputs since the last reading, modulo `refresh`.
+    phase: u32,
+    /// The last reading.
+    last: Option<f64>,
+}
+
+impl OracleGate {
+    fn new(period_us: f64) -> Self {
+        let period = (period_us as u32).max(1);
+        Self {
+            warmup_outputs: crate::readout::shared::WARMUP_US.div_ceil(period),
+            refresh: (crate::readout::shared::REFRESH_US / period).max(1),
+            phase: 0,
+            last: None,
+        }
+    }
+
+    /// One output period: reads the fields when due, ages them, and says what to output.
+    fn output(&mut self, fields: &mut [OracleField; 2], twins: bool) -> (f64, u8) {
+        if self.phase == 0 {
+            self.last = two_population_estimate(fields, twins);
+        }
+        self.phase = (self.phase + 1) % self.refresh;
+        for field in fields.iter_mut() {
+            field.age();
+        }
+        let est = if self.warmup_outputs > 0 {
+            self.warmup_outputs -= 1;
+            None
+        } else {
+            self.last
+        };
+        est.map_or((0.0, crate::flags::NO_EVIDENCE), |v| (v, 0))
+    }
+}
+
 fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> Option<f64> {
     let [fast, slow] = fields;
     let by = |f: &OracleField| {
@@ -783,9 +800,8 @@ pub struct OracleSpikeYaw<L: crate::layout::Layout> {
     next_out: Option<f64>,
     /// TRG events before this time (µs) are not decoded (the warm-up).
     decode_from: f64,
-    outputs: u64,
-    phase: u32,
-    last: Option<f64>,
+    /// What each output says.
+    gate: OracleGate,
     last_event: f64,
     /// Spikes received (both populations).
     pub spikes: u64,
@@ -906,9 +922,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             near_floor_s: -p.tau_fac * share.ln() * 1e-6,
             next_out: None,
             decode_from: f64::INFINITY,
-            outputs: 0,
-            phase: 0,
-            last: None,
+            gate: OracleGate::new(period_us),
             last_event: 0.0,
             spikes: 0,
             samples: 0,
@@ -973,22 +987,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
                 self.with_population(k, |pop, target| pop.settle(target, next));
             }
             self.stride.age(self.period);
-            let warmup = u64::from(crate::readout::shared::WARMUP_US.div_ceil(self.period as u32));
-            let refresh = (crate::readout::shared::REFRESH_US / (self.period as u32).max(1)).max(1);
-            if self.phase == 0 {
-                self.last = two_population_estimate(&self.fields, self.twins);
-            }
-            self.phase = (self.phase + 1) % refresh;
-            for field in &mut self.fields {
-                field.age();
-            }
-            let est = if self.outputs >= warmup {
-                self.last
-            } else {
-                None
-            };
-            self.outputs += 1;
-            let value = est.map_or((0.0, crate::flags::NO_EVIDENCE), |v| (v, 0));
+            let value = self.gate.output(&mut self.fields, self.twins);
             out.push(sample(next, self.last_event, value));
             next += self.period;
         }

@@ -59,8 +59,8 @@
 //! ceiling (`w_T` times the own trace) the decoded crossing time is mostly error. With the near
 //! units chosen they are therefore read only for drives up to [`NEAR_DRIVE_SHARE_LOG2`] of the
 //! ceiling (a one-pixel crossing of at least 2.1 ms) and the layout's units for the faster
-//! edges (a two-pixel crossing under twice that). The slow units' reach doubles when the near
-//! units are read (one pixel in 54 ms is two in 108 ms).
+//! edges (a crossing of the stride under `stride` times that). The slow units' reach grows by
+//! the stride when the near units are read (one pixel in 54 ms is two in 108 ms at stride 2).
 //!
 //! Causal: the network hands a spike at `t` over by the first output time at or after `t`,
 //! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
@@ -74,10 +74,10 @@
 //! # State
 //! One [`SpikeCell`] per pixel of the layout and network (three networks: 84 bytes per pixel),
 //! from the caller (28 bytes each, on top of the spiking networks' own state): each unit's
-//! burst in progress (where its membrane last started charging, 24 bits of µs; what the last interval said; 8 bytes), the pixel's last
-//! decoded onset and own trace, each unit's decoded drive for it, and its link in the queue of
-//! decodes waiting for a twin's answer. Nothing is ever full and
-//! no spike goes untracked: a pool of bursts in progress would not be smaller, as up to 45 %
+//! burst in progress (where its membrane last started charging, 24 bits of µs; what the last
+//! interval said; 8 bytes), the pixel's last decoded onset and own trace, each unit's decoded
+//! drive for it, and its link in the queue of decodes waiting for a twin's answer. Nothing is
+//! ever full and no spike goes untracked: a pool of bursts in progress would not be smaller, as up to 45 %
 //! of the pixels burst at once on the shared sequences (a drone's fast turn), and a pool that
 //! overflows drops decodes unevenly (a pixel that keeps bursting keeps its slot). A sweep
 //! visits every cell every 4 s and forgets what is older than `M` (65 ms) or the own-trace
