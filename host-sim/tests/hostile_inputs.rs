@@ -574,9 +574,13 @@ fn aedat4_decompression_is_capped_by_the_declared_size() {
 #[test]
 fn hdf5_missing_chunks_are_an_error() {
     let d = tmp();
+    // HDF5 opens files without close-on-exec and locks them: a child that another test spawns
+    // while this one writes inherits the descriptor and keeps the lock. The reader gets a copy
+    // (a new inode) that no leaked descriptor can hold.
+    let staged: PathBuf = d.path().join("staged.hdf5");
     let p: PathBuf = d.path().join("partial_data.hdf5");
     {
-        let file = hdf5::File::create(&p).unwrap();
+        let file = hdf5::File::create(&staged).unwrap();
         let ds = file
             .new_dataset::<f64>()
             .chunk([100, 4])
@@ -589,6 +593,7 @@ fn hdf5_missing_chunks_are_an_error() {
         ds.write_raw(&rows).unwrap();
         ds.resize([4000, 4]).unwrap();
     }
+    std::fs::copy(&staged, &p).unwrap();
     let out = d.path().join("y.csv");
     let o = run(args!["convert", p, "--to", "csv", "--out", out]);
     assert_fails(&o, &["stores 10 of its 40 chunks"]);
