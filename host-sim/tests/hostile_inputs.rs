@@ -600,6 +600,26 @@ fn hdf5_missing_chunks_are_an_error() {
     assert!(!out.exists());
 }
 
+/// A file another process is writing (HDF5 writers lock it): the error says what to do.
+#[test]
+fn hdf5_locked_by_a_writer_says_so() {
+    let d = tmp();
+    let p: PathBuf = d.path().join("open_data.hdf5");
+    let file = hdf5::File::create(&p).unwrap();
+    let ds = file
+        .new_dataset::<f64>()
+        .shape([10, 4])
+        .create("davis/left/events")
+        .unwrap();
+    ds.write_raw(&[1.0f64; 40]).unwrap();
+    file.flush().unwrap();
+    let out = d.path().join("y.csv");
+    let o = run(args!["convert", p, "--to", "csv", "--out", out]);
+    drop((ds, file));
+    assert_fails(&o, &["unable to lock file", "HDF5_USE_FILE_LOCKING=FALSE"]);
+    assert!(!out.exists());
+}
+
 #[test]
 fn eval_refuses_truth_without_time_and_gyro_on_another_clock() {
     let d = tmp();

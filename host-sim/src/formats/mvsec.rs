@@ -19,8 +19,20 @@ use super::{Event64, GtSample, GyroSample};
 
 fn open(path: &Path) -> Result<hdf5::File> {
     precheck(path)?;
-    hdf5::File::open(path).map_err(|e| anyhow!("{}: cannot open as HDF5: {e}", path.display()))
+    hdf5::File::open(path).map_err(|e| {
+        let hint = if e.to_string().contains("unable to lock file") {
+            LOCK_HINT
+        } else {
+            ""
+        };
+        anyhow!("{}: cannot open as HDF5: {e}{hint}", path.display())
+    })
 }
+
+/// Added to the library's message when the file is locked: HDF5 writers lock their files, and
+/// the library honours `HDF5_USE_FILE_LOCKING`.
+const LOCK_HINT: &str = " (another process has it open for writing: close it there, or set \
+    HDF5_USE_FILE_LOCKING=FALSE to read it anyway)";
 
 /// Checks the HDF5 signature and, from the superblock's end-of-file address, that the file is
 /// complete, so that those errors name a byte offset (the HDF5 library's messages do not).
