@@ -1395,9 +1395,9 @@ fn sign_agreement(n: f64, p: f64) -> f64 {
 /// intercept with every right band's, if each side has values in at least `support` bands
 /// and either `support` mirrored bands have both or more than half of the mirrored bands'
 /// sides have one, and if regions in at least
-/// [`ABOVE_SUPPORT`](crate::readout::field::ABOVE_SUPPORT) row bands above the principal row
-/// have values, and if neither sign holds more than a quarter of the weight; no answer when
-/// the decodes have all but stopped.
+/// [`ABOVE_SUPPORT`](crate::readout::field::ABOVE_SUPPORT) row bands above the principal row,
+/// the topmost among them, have values, and if neither sign holds more than a quarter of the
+/// weight; no answer when the decodes have all but stopped.
 pub struct OracleField {
     focal: f64,
     cx: f64,
@@ -1565,16 +1565,17 @@ impl OracleField {
                 right.into_iter().flatten().collect(),
             );
             let need = self.support.min(self.paired_bands).max(1);
-            // Values in ABOVE_SUPPORT row bands above the principal row (v = 0).
-            let above = (0..ROWS)
-                .filter(|&row| {
-                    (0..2 * COLS).any(|col| self.region_value(col * 2 * ROWS + row).is_some())
-                })
-                .count();
+            // Values in ABOVE_SUPPORT row bands above the principal row (v = 0), the topmost
+            // among them.
+            let has_above = |row: usize| {
+                (0..2 * COLS).any(|col| self.region_value(col * 2 * ROWS + row).is_some())
+            };
+            let above = (0..ROWS).filter(|&row| has_above(row)).count();
             if left.len() < need
                 || right.len() < need
                 || (mirrored < need && left.len() + right.len() <= self.paired_bands)
                 || (above as u32) < crate::readout::field::ABOVE_SUPPORT
+                || !has_above(ROWS - 1)
             {
                 return None;
             }

@@ -1,5 +1,5 @@
 //! The calibrated readout in the regimes a drone or a car lives in, one rendered scene each
-//! (`host-sim synth --regime R`), and on the real recording of a static camera with a moving
+//! (`host-sim synth --regime R`; objects: two), and on the real recording of a static camera with a moving
 //! object. Each scene prints its figures (`--nocapture`): correlation with the ground-truth yaw
 //! rate and RMSE over its peak, both of the output as it is (as `host-sim eval` computes them:
 //! a "no evidence" sample is 0), the share of samples flagged "no evidence"
@@ -7,12 +7,12 @@
 //! output with the samples flagged "no evidence" as 0 (what a consumer that drops them sees).
 //!
 //! The spike readout runs on the same scenes: its RMSE stays within a bound of the calibrated
-//! readout's (today's ratio with a margin: car 1.23, drone 1.26, hover 1.11, rotation 0.96;
+//! readout's (today's ratio with a margin: car 1.21, drone 1.26, hover 1.12, rotation 0.95;
 //! README: "Three readouts"), and on the static scene its RMS output within the same 0.03
 //! rad/s.
 //!
 //! The bounds are what the readout reaches today with a margin (README: "Flight regimes"; on
-//! these scenes it reaches correlation 0.993 / 0.979 / 0.974 / 0.996, RMSE 6.2 / 13.4 / 13.7
+//! these scenes it reaches correlation 0.993 / 0.979 / 0.975 / 0.996, RMSE 6.0 / 13.4 / 13.6
 //! / 6.1 % of peak for car / drone / hover / rotation, "no evidence" while turning 1.2-3.6 %,
 //! and RMS output 0.000 and 0.000 rad/s for the static scenes; before the near units 0.978 /
 //! 0.946 / 0.930 / 0.989 and 10.6 / 19.1 / 23.5 / 10.2 %); the targets are tighter
@@ -145,6 +145,23 @@ fn check_spikes(name: &str, f: &Figures, s: &Figures, ratio: f64) {
     assert!(r <= ratio, "{name}: spike / calibrated RMSE {r:.2}");
 }
 
+/// A camera that does not turn: both readouts' RMS output ("no evidence" as 0) at most 0.03
+/// rad/s.
+fn check_still(name: &str, f: &Figures, s: &Figures) {
+    report(name, f);
+    report(&format!("{name}, spike readout"), s);
+    assert!(
+        f.rms_out <= 0.03,
+        "{name}: RMS output {:.3} rad/s",
+        f.rms_out
+    );
+    assert!(
+        s.rms_out <= 0.03,
+        "{name}, spike readout: RMS output {:.3} rad/s",
+        s.rms_out
+    );
+}
+
 #[test]
 fn car_forward_motion() {
     let (f, s) = scene(Regime::Car, 3, 3.0);
@@ -186,14 +203,17 @@ fn pure_rotation() {
 #[test]
 fn static_camera_moving_objects() {
     let (f, s) = scene(Regime::Objects, 3, 3.0);
-    report("objects", &f);
-    report("objects, spike readout", &s);
-    assert!(f.rms_out <= 0.03, "RMS output {:.3} rad/s", f.rms_out);
-    assert!(
-        s.rms_out <= 0.03,
-        "spike readout: RMS output {:.3} rad/s",
-        s.rms_out
-    );
+    check_still("objects", &f, &s);
+}
+
+/// People walking past 2-3 m from a camera 1.2 m above the ground reach into the second row
+/// band above the principal row (seed 51: a person at 2.2 m, a car at 8.8 m). Before the field
+/// needed its top row band above, this scene read turns of up to 0.76 rad/s (RMS output 0.21
+/// rad/s, both readouts).
+#[test]
+fn people_walking_past_a_camera_flying_low() {
+    let (f, s) = scene(Regime::Objects, 51, 4.0);
+    check_still("objects seed 51", &f, &s);
 }
 
 /// The real DAVIS346 recording: a static camera (gyro below 0.02 rad/s) and an object crossing
