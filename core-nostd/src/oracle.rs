@@ -1392,9 +1392,9 @@ fn sign_agreement(n: f64, p: f64) -> f64 {
 /// histograms of `log2 |rate|` per region, decayed exactly each period; per region the median
 /// and its variance from the interquartile range; per column band and side the intercept at
 /// `Y = 0` of a weighted fit; the weighted median over the means of every left band's
-/// intercept with every right band's, if each side has values in at least `support` bands
-/// and either `support` mirrored bands have both or more than half of the mirrored bands'
-/// sides have one, and if regions in at least
+/// intercept with every right band's, if each side has a value in some band and either
+/// `support` mirrored bands have both or at least half of the mirrored bands' sides have
+/// one, and if regions in at least
 /// [`ABOVE_SUPPORT`](crate::readout::field::ABOVE_SUPPORT) row bands above the principal row,
 /// the topmost among them, have values, and if neither sign holds more than a quarter of the
 /// weight; no answer when the decodes have all but stopped.
@@ -1549,8 +1549,8 @@ impl OracleField {
         }
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
         if self.paired_bands > 0 {
-            // Every left band with every right band; each side needs `support` bands, and
-            // `support` of them mirrored or more than half of the mirrored bands' sides.
+            // Every left band with every right band; each side needs a band, and `support`
+            // of them mirrored or at least half of the mirrored bands' sides.
             let fits = |side| -> std::vec::Vec<Option<(f64, f64)>> {
                 (0..COLS).map(|b| self.column_intercept(side, b)).collect()
             };
@@ -1571,9 +1571,9 @@ impl OracleField {
                 (0..2 * COLS).any(|col| self.region_value(col * 2 * ROWS + row).is_some())
             };
             let above = (0..ROWS).filter(|&row| has_above(row)).count();
-            if left.len() < need
-                || right.len() < need
-                || (mirrored < need && left.len() + right.len() <= self.paired_bands)
+            if left.is_empty()
+                || right.is_empty()
+                || (mirrored < need && left.len() + right.len() < self.paired_bands)
                 || (above as u32) < crate::readout::field::ABOVE_SUPPORT
                 || !has_above(ROWS - 1)
             {

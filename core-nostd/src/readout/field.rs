@@ -35,11 +35,13 @@
 //!   region values against `Y` (slopes with a weak prior).
 //! - Every left band's intercept is paired with every right band's (up to
 //!   [`COL_BANDS`]² pairs); the output is the inverse-variance weighted median of the pairs'
-//!   means when each side has intercepts in at least `support` bands, and either `support`
-//!   mirrored bands have both or more than half of the mirrored bands' sides have one; else
-//!   "no rotation evidence". Pairing across bands keeps one wrong band from spoiling its
-//!   mirror, and a side that sees no texture in some bands (sky, a blank wall) from silencing
-//!   the field.
+//!   means when each side has an intercept in some band, and either `support` mirrored bands
+//!   have both or at least half of the mirrored bands' sides have one; else "no rotation
+//!   evidence". Pairing across bands keeps one wrong band from spoiling its mirror, and a side
+//!   that sees no texture in some bands (sky, a blank wall) from silencing the field. (Objects
+//!   crossing the view are told from a rotation mostly by the rows they reach, below: with
+//!   that rule in place, a side needs one band, not `support`, and a view whose texture lies
+//!   mostly on one side still answers.)
 //! - An answer also needs values in at least [`ABOVE_SUPPORT`] of the row bands above the
 //!   principal row, the topmost band among them: far scenery above the horizon moves with a
 //!   rotation, while objects on the ground (people, cars crossing the view of a camera that
@@ -618,10 +620,10 @@ impl Field {
     /// is odd in `X` (forward translation), exactly for mirrored bands and about for others,
     /// and the weighted median over all pairs lets neither one wrong band nor a side without
     /// texture in some bands silence the field (the mean of the mirrored pair alone does
-    /// both). An answer needs values in at least `support` column bands on each side, and
-    /// either `support` mirrored bands with values on both sides or values in more than half
-    /// of the mirrored bands' sides: a rotation moves the whole view, an object that crosses
-    /// near the principal point a few bands either side of it. It also needs values in
+    /// both). An answer needs a value in some column band on each side (what is odd in `X`
+    /// must cancel), and either `support` mirrored bands with values on both sides or values
+    /// in at least half of the mirrored bands' sides: a rotation moves the whole view, an
+    /// object that crosses near the principal point a few bands either side of it. It also needs values in
     /// [`ABOVE_SUPPORT`] row bands above the principal row, the topmost among them, where
     /// objects on the ground hardly reach.
     fn mirrored_estimate(&self, pop: Population) -> FieldEstimate {
@@ -641,9 +643,9 @@ impl Field {
             .count();
         let need = self.settings.support.min(self.paired_bands).max(1);
         let [n_left, n_right] = have;
-        if n_left < need
-            || n_right < need
-            || ((mirrored as u8) < need && n_left + n_right <= self.paired_bands)
+        if n_left == 0
+            || n_right == 0
+            || ((mirrored as u8) < need && n_left + n_right < self.paired_bands)
             || !self.above_supported(pop)
         {
             return FieldEstimate::NoEvidence;
@@ -870,21 +872,33 @@ mod tests {
     }
 
     #[test]
-    fn an_object_near_the_centre_is_no_rotation() {
-        // Left bands 0, 1 and right bands 0, 1 would be two mirrored bands; left 1, 2 and
-        // right 0, 1 (one mirrored band, half of the band sides) are not enough.
-        let mut f = field();
-        feed(
-            &mut f,
-            &[(0, 1, 400), (0, 2, 400), (1, 0, 400), (1, 1, 400)],
-        );
-        assert_eq!(f.estimate(), FieldEstimate::NoEvidence);
-        let mut f = field();
-        feed(
-            &mut f,
-            &[(0, 0, 400), (0, 1, 400), (1, 0, 400), (1, 1, 400)],
-        );
-        assert!(rad_s(f.estimate()).is_some());
+    fn half_of_the_band_sides_answer_fewer_do_not() {
+        // Column bands (side, band) that see texture moving at 0.4 rad/s, in every row band.
+        let cases: [(&[(usize, usize)], bool); 5] = [
+            // Three of the eight band sides, one mirrored band: an object near the centre.
+            (&[(0, 1), (0, 2), (1, 0)], false),
+            // Half of the band sides.
+            (&[(0, 1), (0, 2), (1, 0), (1, 1)], true),
+            // Texture mostly on one side (a blank wall or sky on the other): still half.
+            (&[(0, 0), (1, 1), (1, 2), (1, 3)], true),
+            // One side only: what is odd in `X` (forward translation) cannot cancel.
+            (&[(1, 0), (1, 1), (1, 2), (1, 3)], false),
+            // Two mirrored bands.
+            (&[(0, 0), (0, 1), (1, 0), (1, 1)], true),
+        ];
+        for (bands, answers) in cases {
+            let mut f = field();
+            let mut with_rate = [(0, 0, 0); 2 * COL_BANDS];
+            for (slot, &(side, band)) in with_rate.iter_mut().zip(bands) {
+                *slot = (side, band, 400);
+            }
+            feed(&mut f, with_rate.get(..bands.len()).unwrap_or_default());
+            let v = rad_s(f.estimate());
+            assert_eq!(v.is_some(), answers, "{bands:?}: {v:?}");
+            if let Some(v) = v {
+                assert!((v - 0.4).abs() < 0.05, "{v}");
+            }
+        }
     }
 
     #[test]
