@@ -708,9 +708,6 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
     }
 }
 
-/// The estimate of the population (0: the paper's units, 1: the slow units) whose decodes
-/// agree more in sign per unit of its time constant (`twins == false`, a layout without twin
-/// units: that decodes more); the slow units' scaled by their recent share of decodes.
 /// [`crate::readout::shared::OutputGate`] in f64: "no evidence" for the first
 /// [`crate::readout::shared::WARMUP_US`], then the field's estimate, read every
 /// [`crate::readout::shared::REFRESH_US`] and repeated between.
@@ -755,6 +752,9 @@ impl OracleGate {
     }
 }
 
+/// The estimate of the population (0: the paper's units, 1: the slow units) whose decodes
+/// agree more in sign per unit of its time constant (`twins == false`, a layout without twin
+/// units: that decodes more); the slow units' scaled by their recent share of decodes.
 fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> Option<f64> {
     let [fast, slow] = fields;
     let by = |f: &OracleField| {
@@ -1406,9 +1406,9 @@ pub struct OracleField {
     period: f64,
     min_samples: f64,
     spread_floor: f64,
-    support: usize,
+    support: u8,
     band: (f64, f64),
-    paired_bands: usize,
+    paired_bands: u8,
     /// `[region][sign][bin]`.
     hist: std::vec::Vec<[[f64; ORACLE_BINS]; 2]>,
     recent: f64,
@@ -1447,7 +1447,7 @@ impl OracleField {
             period: period_us,
             min_samples: f64::from(fs.min_samples_q16) / 65536.0,
             spread_floor: f64::from(fs.spread_floor_q16) / 65536.0,
-            support: usize::from(fs.support),
+            support: fs.support,
             band,
             paired_bands: 0,
             hist: std::vec![[[0.0; ORACLE_BINS]; 2]; 4 * COLS * ROWS],
@@ -1465,7 +1465,7 @@ impl OracleField {
             }
         }
         let [l, r] = seen;
-        me.paired_bands = l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count();
+        me.paired_bands = l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count() as u8;
         me
     }
 
@@ -1549,38 +1549,27 @@ impl OracleField {
         }
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
         if self.paired_bands > 0 {
-            // Every left band with every right band; each side needs a band, and `support`
-            // of them mirrored or at least half of the mirrored bands' sides.
-            let fits = |side| -> std::vec::Vec<Option<(f64, f64)>> {
-                (0..COLS).map(|b| self.column_intercept(side, b)).collect()
-            };
-            let (left, right) = (fits(0), fits(1));
-            let mirrored = left
-                .iter()
-                .zip(&right)
-                .filter(|(a, c)| a.is_some() && c.is_some())
-                .count();
-            let (left, right): (std::vec::Vec<_>, std::vec::Vec<_>) = (
-                left.into_iter().flatten().collect(),
-                right.into_iter().flatten().collect(),
-            );
-            let need = self.support.min(self.paired_bands).max(1);
-            // Values in ABOVE_SUPPORT row bands above the principal row (v = 0), the topmost
-            // among them.
-            let has_above = |row: usize| {
+            // Every left band with every right band, when the values are spread as a
+            // rotation's (the fixed-point field's rule).
+            let sides: [[Option<(f64, f64)>; COLS]; 2] = core::array::from_fn(|side| {
+                core::array::from_fn(|band| self.column_intercept(side, band))
+            });
+            // Row bands above the principal row (v = 0) with a value in some region.
+            let above = core::array::from_fn(|row| {
                 (0..2 * COLS).any(|col| self.region_value(col * 2 * ROWS + row).is_some())
-            };
-            let above = (0..ROWS).filter(|&row| has_above(row)).count();
-            if left.is_empty()
-                || right.is_empty()
-                || (mirrored < need && left.len() + right.len() < self.paired_bands)
-                || (above as u32) < crate::readout::field::ABOVE_SUPPORT
-                || !has_above(ROWS - 1)
-            {
+            });
+            let bands = sides.map(|fits| fits.map(|fit| fit.is_some()));
+            if !crate::readout::field::spread_is_rotation(
+                bands,
+                above,
+                self.support,
+                self.paired_bands,
+            ) {
                 return None;
             }
-            for &(a, va) in &left {
-                for &(c, vc) in &right {
+            let [left, right] = sides;
+            for &(a, va) in left.iter().flatten() {
+                for &(c, vc) in right.iter().flatten() {
                     values.push((0.5 * (a + c), 1.0 / (0.25 * (va + vc))));
                 }
             }

@@ -1,10 +1,11 @@
 //! The calibrated readout in the regimes a drone or a car lives in, one rendered scene each
-//! (`host-sim synth --regime R`; objects: two), and on the real recording of a static camera with a moving
-//! object. Each scene prints its figures (`--nocapture`): correlation with the ground-truth yaw
-//! rate and RMSE over its peak, both of the output as it is (as `host-sim eval` computes them:
-//! a "no evidence" sample is 0), the share of samples flagged "no evidence"
-//! while the camera turns at 0.05 rad/s or more, and for a camera that does not turn, the RMS
-//! output with the samples flagged "no evidence" as 0 (what a consumer that drops them sees).
+//! (`host-sim synth --regime R`; objects: two), and on the real recording of a static camera
+//! with a moving object. Each scene prints its figures (`--nocapture`): correlation with the
+//! ground-truth yaw rate and RMSE over its peak, both of the output as it is (as `host-sim
+//! eval` computes them: a "no evidence" sample is 0), the share of samples flagged "no
+//! evidence" while the camera turns at 0.05 rad/s or more, and for a camera that does not
+//! turn, the RMS output with the samples flagged "no evidence" as 0 (what a consumer that drops
+//! them sees).
 //!
 //! The spike readout runs on the same scenes: its RMSE stays within a bound of the calibrated
 //! readout's (today's ratio with a margin: car 1.21, drone 1.26, hover 1.16, rotation 0.93;

@@ -593,14 +593,16 @@ impl Field {
 
     /// One population's estimate.
     fn population_estimate(&self, pop: Population) -> FieldEstimate {
+        let regions: [Option<RegionStats>; REGIONS] =
+            core::array::from_fn(|region| self.population_value(pop, region));
         if self.paired_bands > 0 {
-            return self.mirrored_estimate(pop);
+            return self.mirrored_estimate(&regions);
         }
         // (value, weight) per column band: the mean of its two sides' intercepts.
         let mut values = [(0i64, 0u64); COL_BANDS];
         let mut n = 0usize;
         for band in 0..COL_BANDS {
-            let fit = |side: usize| self.column_intercept(pop, side, band);
+            let fit = |side: usize| self.column_intercept(&regions, side, band);
             // No mirrored regions: whichever side has units.
             let est = match (fit(0), fit(1)) {
                 (Some(a), None) | (None, Some(a)) => Some(a),
@@ -623,33 +625,27 @@ impl Field {
     /// both). An answer needs a value in some column band on each side (what is odd in `X`
     /// must cancel), and either `support` mirrored bands with values on both sides or values
     /// in at least half of the mirrored bands' sides: a rotation moves the whole view, an
-    /// object that crosses near the principal point a few bands either side of it. It also needs values in
-    /// [`ABOVE_SUPPORT`] row bands above the principal row, the topmost among them, where
-    /// objects on the ground hardly reach.
-    fn mirrored_estimate(&self, pop: Population) -> FieldEstimate {
-        let mut sides = [[None; COL_BANDS]; 2];
-        let mut have = [0u8; 2];
-        for (side, (fits, n)) in sides.iter_mut().zip(have.iter_mut()).enumerate() {
-            for (band, fit) in fits.iter_mut().enumerate() {
-                *fit = self.column_intercept(pop, side, band);
-                *n += u8::from(fit.is_some());
-            }
-        }
-        let [left, right] = sides;
-        let mirrored = left
-            .iter()
-            .zip(right.iter())
-            .filter(|(a, b)| a.is_some() && b.is_some())
-            .count();
-        let need = self.settings.support.min(self.paired_bands).max(1);
-        let [n_left, n_right] = have;
-        if n_left == 0
-            || n_right == 0
-            || ((mirrored as u8) < need && n_left + n_right < self.paired_bands)
-            || !self.above_supported(pop)
-        {
+    /// object that crosses near the principal point a few bands either side of it. It also
+    /// needs values in [`ABOVE_SUPPORT`] row bands above the principal row, the topmost among
+    /// them, where objects on the ground hardly reach ([`spread_is_rotation`]).
+    fn mirrored_estimate(&self, regions: &[Option<RegionStats>; REGIONS]) -> FieldEstimate {
+        let sides: [[Option<(i64, u64)>; COL_BANDS]; 2] = core::array::from_fn(|side| {
+            core::array::from_fn(|band| self.column_intercept(regions, side, band))
+        });
+        let above = core::array::from_fn(|row| {
+            (0..2).any(|side| {
+                (0..COL_BANDS).any(|band| {
+                    regions
+                        .get(region_index(side, band, 0, row))
+                        .is_some_and(Option::is_some)
+                })
+            })
+        });
+        let bands = sides.map(|fits| fits.map(|fit| fit.is_some()));
+        if !spread_is_rotation(bands, above, self.settings.support, self.paired_bands) {
             return FieldEstimate::NoEvidence;
         }
+        let [left, right] = sides;
         let mut values = [(0i64, 0u64); COL_BANDS * COL_BANDS];
         let mut n = 0usize;
         for &(a, va) in left.iter().flatten() {
@@ -663,24 +659,6 @@ impl Field {
         weighted_median(values.get(..n).unwrap_or(&[]))
     }
 
-    /// Whether at least [`ABOVE_SUPPORT`] row bands above the principal row, the topmost one
-    /// among them, have a value of `pop` in some region.
-    fn above_supported(&self, pop: Population) -> bool {
-        let mut n = 0u32;
-        let mut top = false;
-        for row in 0..ROW_BANDS {
-            let any = (0..2).any(|side| {
-                (0..COL_BANDS).any(|band| {
-                    self.population_value(pop, region_index(side, band, 0, row))
-                        .is_some()
-                })
-            });
-            n += u32::from(any);
-            top = any;
-        }
-        top && n >= ABOVE_SUPPORT
-    }
-
     /// The rate at the principal row (`Y = 0`) of one column band on one side, and its
     /// variance (Q16 rad/s, Q32): a weighted least-squares fit of the region medians
     /// `r = w + a Y (above) + b Y (below)`. Roll (`∝ Y`), pitch (`∝ X Y`) and the translation
@@ -688,14 +666,22 @@ impl Field {
     /// column band, so the intercept is the yaw rate plus what stays odd in `X` (which the
     /// mirrored side cancels). The slopes have a prior ([`SLOPE_PRIOR`]) so that one row band
     /// per half still counts.
-    fn column_intercept(&self, pop: Population, side: usize, band: usize) -> Option<(i64, u64)> {
+    fn column_intercept(
+        &self,
+        regions: &[Option<RegionStats>; REGIONS],
+        side: usize,
+        band: usize,
+    ) -> Option<(i64, u64)> {
         // Fixed point without 128-bit division (costly on a Cortex-M): weights in
         // [0, MAX_WEIGHT], Y and r in Q12. The bounds in the comments keep every i64 in range.
         let (mut s, mut r_sum) = (0i64, 0i64); // < 2^23, < 2^45
         let mut half = [(0i64, 0i64, 0i64); 2]; // (Σ w Y < 2^36, Σ w Y² < 2^37, Σ w r Y < 2^46)
         for vside in 0..2 {
             for row in 0..ROW_BANDS {
-                let Some(st) = self.population_value(pop, region_index(side, band, vside, row))
+                let Some(st) = regions
+                    .get(region_index(side, band, vside, row))
+                    .copied()
+                    .flatten()
                 else {
                     continue;
                 };
@@ -739,6 +725,31 @@ impl Field {
         let variance = ((WEIGHT_SCALE << 12) / info.unsigned_abs()).max(1);
         Some((omega_q12.saturating_mul(16), variance))
     }
+}
+
+/// Whether a field's values are spread over the view as a rotation's are (the rule of
+/// [`Field`] and of the f64 oracle's field): a value in some column band on each side of the
+/// principal point (what is odd in `X` must cancel), and either `support` mirrored bands (at
+/// most the `paired_bands` the layout covers on both sides) or at least half of the mirrored
+/// bands' sides; and values in at least [`ABOVE_SUPPORT`] row bands above the principal row,
+/// the topmost among them. `bands[side][band]`: that band's side has a value; `above[row]`:
+/// some region of row band `row` above the principal row has one.
+pub(crate) fn spread_is_rotation(
+    bands: [[bool; COL_BANDS]; 2],
+    above: [bool; ROW_BANDS],
+    support: u8,
+    paired_bands: u8,
+) -> bool {
+    let count = |flags: &[bool]| flags.iter().filter(|&&f| f).count();
+    let [left, right] = bands;
+    let (n_left, n_right) = (count(&left), count(&right));
+    let mirrored = left.iter().zip(&right).filter(|(a, b)| **a && **b).count();
+    let need = usize::from(support.min(paired_bands).max(1));
+    n_left > 0
+        && n_right > 0
+        && (mirrored >= need || n_left + n_right >= usize::from(paired_bands))
+        && count(&above) >= ABOVE_SUPPORT as usize
+        && above.last().copied().unwrap_or(false)
 }
 
 /// The weighted median of `(value Q16 rad/s, weight)` pairs: the smallest value whose weight,

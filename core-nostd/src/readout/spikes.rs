@@ -77,13 +77,13 @@
 //! burst in progress (where its membrane last started charging, 24 bits of µs; what the last
 //! interval said; 8 bytes), the pixel's last decoded onset and own trace, each unit's decoded
 //! drive for it, and its link in the queue of decodes waiting for a twin's answer. Nothing is
-//! ever full and no spike goes untracked: a pool of bursts in progress would not be smaller, as up to 45 %
-//! of the pixels burst at once on the shared sequences (a drone's fast turn), and a pool that
-//! overflows drops decodes unevenly (a pixel that keeps bursting keeps its slot). A sweep
-//! visits every cell every 4 s and forgets what is older than `M` (65 ms) or the own-trace
-//! memory, so that no stored time is read across its wrap. Decodes waiting for a twin's answer
-//! wait in a queue linked through the cells (each cell at most once), so none is ever decided
-//! early for want of room.
+//! ever full and no spike goes untracked: a pool of bursts in progress would not be smaller,
+//! as up to 45 % of the pixels burst at once on the shared sequences (a drone's fast turn), and
+//! a pool that overflows drops decodes unevenly (a pixel that keeps bursting keeps its slot). A
+//! sweep visits every cell every 4 s and forgets what is older than `M` (65 ms) or the
+//! own-trace memory, so that no stored time is read across its wrap. Decodes waiting for a
+//! twin's answer wait in a queue linked through the cells (each cell at most once), so none is
+//! ever decided early for want of room.
 
 use fixed::types::I16F16;
 
