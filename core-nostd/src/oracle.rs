@@ -1408,7 +1408,7 @@ pub struct OracleField {
     spread_floor: f64,
     support: u8,
     band: (f64, f64),
-    paired_bands: u8,
+    coverage: crate::readout::field::Coverage,
     /// `[region][sign][bin]`.
     hist: std::vec::Vec<[[f64; ORACLE_BINS]; 2]>,
     recent: f64,
@@ -1449,23 +1449,30 @@ impl OracleField {
             spread_floor: f64::from(fs.spread_floor_q16) / 65536.0,
             support: fs.support,
             band,
-            paired_bands: 0,
+            coverage: crate::readout::field::Coverage::default(),
             hist: std::vec![[[0.0; ORACLE_BINS]; 2]; 4 * COLS * ROWS],
             recent: 0.0,
             short: 0.0,
         };
         let mut seen = [[false; COLS]; 2];
+        let mut above_bands = 0u8;
         for c in 0..layout.cell_count() {
             if layout.units(c) != 0 {
                 let (x, y) = layout.pixel(c);
-                let (side, b, _, _) = me.region(x, y);
+                let (side, b, v, r) = me.region(x, y);
                 if let Some(s) = seen.get_mut(side).and_then(|s| s.get_mut(b)) {
                     *s = true;
+                }
+                if v == 0 {
+                    above_bands = above_bands.max(r as u8 + 1);
                 }
             }
         }
         let [l, r] = seen;
-        me.paired_bands = l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count() as u8;
+        me.coverage = crate::readout::field::Coverage {
+            paired_bands: l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count() as u8,
+            above_bands,
+        };
         me
     }
 
@@ -1548,7 +1555,7 @@ impl OracleField {
             return None;
         }
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
-        if self.paired_bands > 0 {
+        if self.coverage.paired_bands > 0 {
             // Every left band with every right band, when the values are spread as a
             // rotation's (the fixed-point field's rule).
             let sides: [[Option<(f64, f64)>; COLS]; 2] = core::array::from_fn(|side| {
@@ -1559,12 +1566,8 @@ impl OracleField {
                 (0..2 * COLS).any(|col| self.region_value(col * 2 * ROWS + row).is_some())
             });
             let bands = sides.map(|fits| fits.map(|fit| fit.is_some()));
-            if !crate::readout::field::spread_is_rotation(
-                bands,
-                above,
-                self.support,
-                self.paired_bands,
-            ) {
+            if !crate::readout::field::spread_is_rotation(bands, above, self.support, self.coverage)
+            {
                 return None;
             }
             let [left, right] = sides;

@@ -45,7 +45,18 @@ struct Figures {
 /// Renders `regime` (seed, duration in s) and runs the product's pipeline on it: the
 /// calibrated readout's figures, and the spike readout's.
 fn scene(regime: Regime, seed: u64, duration_s: f64) -> (Figures, Figures) {
-    let cfg = preset(regime, seed, duration_s, Preset::Davis346);
+    scene_with(regime, seed, duration_s, |_| {})
+}
+
+/// [`scene`] with the rendering's settings changed by `adjust` first.
+fn scene_with(
+    regime: Regime,
+    seed: u64,
+    duration_s: f64,
+    adjust: impl FnOnce(&mut host_sim::synth::SynthConfig),
+) -> (Figures, Figures) {
+    let mut cfg = preset(regime, seed, duration_s, Preset::Davis346);
+    adjust(&mut cfg);
     let seq = generate(&cfg).expect("render");
     let rec = Recording {
         events: seq.events.clone(),
@@ -199,6 +210,18 @@ fn pure_rotation() {
     report("rotation", &f);
     check_turning(&f, 0.98, 0.08, 0.08);
     check_spikes("rotation", &f, &s, 1.1);
+}
+
+/// A calibrated lens seldom has its principal point at the centre: here 30 rows above it (100
+/// of 260), so that the rows above it reach two row bands, not three. Before the field asked for
+/// the topmost band the layout has there, instead of the third, this scene read "no evidence"
+/// throughout, both readouts.
+#[test]
+fn rotation_with_the_principal_point_above_the_centre() {
+    let (f, s) = scene_with(Regime::Rotation, 44, 2.0, |cfg| cfg.intrinsics.cy = 100.0);
+    report("rotation, principal row 100", &f);
+    check_turning(&f, 0.97, 0.12, 0.08);
+    check_spikes("rotation, principal row 100", &f, &s, 1.2);
 }
 
 #[test]

@@ -46,8 +46,11 @@
 //!   principal row, the topmost band among them: far scenery above the horizon moves with a
 //!   rotation, while objects on the ground (people, cars crossing the view of a camera that
 //!   stands still) and the ground under translation move the rows below it and the lower bands
-//!   above it. Assumed: the camera is upright and sees textured scenery in the top third of
-//!   the upper half of the layout's rows.
+//!   above it. Row bands are mirrored, a third of the longer half of the layout's rows each;
+//!   where the principal point lies above the middle of those rows, fewer bands have rows
+//!   above it, and the topmost of those counts as the top band ([`Coverage`]; none is asked
+//!   for when no row lies above it). Assumed: the camera is upright and sees textured scenery
+//!   in that band.
 //! - When more than a quarter of that weight ([`SPLIT_SHARE`]) says the other direction, the
 //!   field does not know which way the camera turns: "no rotation evidence" (just after a
 //!   reversal; straight driving past scenery at different depths either side).
@@ -90,6 +93,22 @@ pub const REGIONS: usize = 4 * COL_BANDS * ROW_BANDS;
 /// problem). Without the top band, people walking past 2-3 m from a camera at 1.2 m read as
 /// 0.4-0.8 rad/s turns (`--regime objects`, seeds 51 and 52).
 pub const ABOVE_SUPPORT: u32 = 2;
+
+/// Which of the field's bands the layout's units reach (from the layout and the principal
+/// point, once): the rules that ask for values spread over the view ask only for bands that
+/// can have them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Coverage {
+    /// Column bands with units on both sides of the principal point (0: the regions never
+    /// mirror, and the field falls back to its unpaired estimate).
+    pub paired_bands: u8,
+    /// Row bands above the principal row that have units, from the principal row up (the
+    /// topmost of them is the top row band of [`ABOVE_SUPPORT`]): [`ROW_BANDS`] when the
+    /// layout reaches as far above the principal point as below, fewer when the principal
+    /// point lies above the middle of the layout's rows (the bands are mirrored: each a third
+    /// of the longer half), 0 when the layout has no row above it.
+    pub above_bands: u8,
+}
 /// Histogram bins per region and sign.
 pub const BINS: usize = 64;
 
@@ -244,17 +263,24 @@ impl FieldGeometry {
         (usize::from(dx >= 0), band)
     }
 
-    /// Region of pixel `(x, y)`: index `((side · COL_BANDS + band) · 2 + vside) · ROW_BANDS + row`.
+    /// `(vside, row band)` of row `y`: vside 1 at or below the principal point.
     #[inline]
-    pub fn region(&self, x: u16, y: u16) -> usize {
-        let (side, band) = self.column(x);
+    pub fn row(&self, y: u16) -> (usize, usize) {
         let dy = (i64::from(y) << 16) + (1 << 15) - self.cy_q16;
         let row = self
             .row_edges
             .iter()
             .filter(|&&e| dy.unsigned_abs() >= e)
             .count();
-        region_index(side, band, usize::from(dy >= 0), row)
+        (usize::from(dy >= 0), row)
+    }
+
+    /// Region of pixel `(x, y)`: index `((side · COL_BANDS + band) · 2 + vside) · ROW_BANDS + row`.
+    #[inline]
+    pub fn region(&self, x: u16, y: u16) -> usize {
+        let (side, band) = self.column(x);
+        let (vside, row) = self.row(y);
+        region_index(side, band, vside, row)
     }
 }
 
@@ -317,8 +343,8 @@ pub struct Field {
     short: [u32; 2],
     /// Per-period decay of `short` (Q1.31).
     short_keep_q31: u32,
-    /// Column bands with units on both sides (regions that can pair).
-    paired_bands: u8,
+    /// The bands the layout's units reach.
+    coverage: Coverage,
     /// The population that answers is the one whose decodes agree more in sign (else the one
     /// that decodes more): see [`Field::choose_by_decode_rate`].
     by_agreement: bool,
@@ -326,14 +352,13 @@ pub struct Field {
 
 impl Field {
     /// An empty field whose histograms have time constant `tau_us` per population (µs), aged
-    /// by `period_us` per output; `paired_bands` the column bands where the layout has units
-    /// either side.
+    /// by `period_us` per output; `coverage` the bands the layout's units reach.
     pub fn new(
         geometry: FieldGeometry,
         settings: FieldSettings,
         tau_us: [u32; 2],
         period_us: u32,
-        paired_bands: u8,
+        coverage: Coverage,
     ) -> Self {
         let keep = |tau: u32| ExpDecay::new(tau).decay_bits(period_us);
         let keep_q31 = tau_us.map(keep);
@@ -351,7 +376,7 @@ impl Field {
             mass: [[[0; 2]; REGIONS]; 2],
             short: [0; 2],
             short_keep_q31: keep(SHORT_TAU_US),
-            paired_bands,
+            coverage,
             by_agreement: true,
         }
     }
@@ -595,7 +620,7 @@ impl Field {
     fn population_estimate(&self, pop: Population) -> FieldEstimate {
         let regions: [Option<RegionStats>; REGIONS] =
             core::array::from_fn(|region| self.population_value(pop, region));
-        if self.paired_bands > 0 {
+        if self.coverage.paired_bands > 0 {
             return self.mirrored_estimate(&regions);
         }
         // (value, weight) per column band: the mean of its two sides' intercepts.
@@ -642,7 +667,7 @@ impl Field {
             })
         });
         let bands = sides.map(|fits| fits.map(|fit| fit.is_some()));
-        if !spread_is_rotation(bands, above, self.settings.support, self.paired_bands) {
+        if !spread_is_rotation(bands, above, self.settings.support, self.coverage) {
             return FieldEstimate::NoEvidence;
         }
         let [left, right] = sides;
@@ -730,26 +755,32 @@ impl Field {
 /// Whether a field's values are spread over the view as a rotation's are (the rule of
 /// [`Field`] and of the f64 oracle's field): a value in some column band on each side of the
 /// principal point (what is odd in `X` must cancel), and either `support` mirrored bands (at
-/// most the `paired_bands` the layout covers on both sides) or at least half of the mirrored
-/// bands' sides; and values in at least [`ABOVE_SUPPORT`] row bands above the principal row,
-/// the topmost among them. `bands[side][band]`: that band's side has a value; `above[row]`:
-/// some region of row band `row` above the principal row has one.
+/// most the paired bands the layout covers) or at least half of the mirrored bands' sides;
+/// and values in at least [`ABOVE_SUPPORT`] row bands above the principal row (at most the
+/// layout's `above_bands`), the topmost band the layout has there among them (none asked
+/// for when the layout has no row above the principal point). `bands[side][band]`: that
+/// band's side has a value; `above[row]`: some region of row band `row` above the principal
+/// row has one.
 pub(crate) fn spread_is_rotation(
     bands: [[bool; COL_BANDS]; 2],
     above: [bool; ROW_BANDS],
     support: u8,
-    paired_bands: u8,
+    coverage: Coverage,
 ) -> bool {
     let count = |flags: &[bool]| flags.iter().filter(|&&f| f).count();
     let [left, right] = bands;
     let (n_left, n_right) = (count(&left), count(&right));
     let mirrored = left.iter().zip(&right).filter(|(a, b)| **a && **b).count();
-    let need = usize::from(support.min(paired_bands).max(1));
+    let paired = coverage.paired_bands;
+    let need = usize::from(support.min(paired).max(1));
+    let reach = usize::from(coverage.above_bands).min(ROW_BANDS);
+    let above = above.get(..reach).unwrap_or(&[]);
+    let above_need = (ABOVE_SUPPORT as usize).min(reach);
     n_left > 0
         && n_right > 0
-        && (mirrored >= need || n_left + n_right >= usize::from(paired_bands))
-        && count(&above) >= ABOVE_SUPPORT as usize
-        && above.last().copied().unwrap_or(false)
+        && (mirrored >= need || n_left + n_right >= usize::from(paired))
+        && count(above) >= above_need
+        && above.last().copied().unwrap_or(true)
 }
 
 /// The weighted median of `(value Q16 rad/s, weight)` pairs: the smallest value whose weight,
@@ -798,7 +829,17 @@ mod tests {
     /// column bands mirrored, `tau_A` = 10 ms, 1 ms periods.
     fn field() -> Field {
         let g = FieldGeometry::spanning(173 << 16, 130 << 16, 226 << 16, (0, 345), (0, 259));
-        Field::new(g, FieldSettings::DEFAULT, [10_000, 100_000], 1_000, 4)
+        let coverage = Coverage {
+            paired_bands: 4,
+            above_bands: 3,
+        };
+        Field::new(
+            g,
+            FieldSettings::DEFAULT,
+            [10_000, 100_000],
+            1_000,
+            coverage,
+        )
     }
 
     /// A pixel in column band `band` on `side` (0 left, 1 right), row band `row` above (`up`)
@@ -946,6 +987,69 @@ mod tests {
             }
             let v = rad_s(f.estimate());
             assert_eq!(v.is_some(), answers, "row bands {above:?} above: {v:?}");
+            if let Some(v) = v {
+                assert!((v - 0.3).abs() < 0.05, "{v}");
+            }
+        }
+    }
+
+    /// The field of the calibrated readout over a dense 346 x 260 layout (stride 2, f = 226
+    /// px) with its principal point at column 173 and row `cy`.
+    fn field_with_principal_row(cy: u16) -> Field {
+        use fixed::types::U16F16;
+        let layout = crate::layout::Dense::new(346, 260, 2).expect("a valid layout");
+        let camera = (
+            U16F16::from_num(226),
+            U16F16::from_num(173),
+            U16F16::from_num(cy),
+        );
+        crate::readout::shared::field_over(
+            &layout,
+            camera,
+            FieldSettings::DEFAULT,
+            [10_000, 100_000],
+            1_000,
+        )
+    }
+
+    #[test]
+    fn the_top_row_band_is_the_topmost_the_layout_has_above_the_principal_point() {
+        // Row bands are a third of the longer half each: with the principal point 100 rows
+        // down of 260 (160 below), the rows above reach into the second band only, and a
+        // principal point at the top leaves none above.
+        for (cy, bands) in [(130, 3), (100, 2), (40, 1), (0, 0)] {
+            let f = field_with_principal_row(cy);
+            assert_eq!(f.coverage.above_bands, bands, "principal row {cy}");
+            assert_eq!(f.coverage.paired_bands, COL_BANDS as u8);
+        }
+        // Principal row 100: every column band moves at 0.3 rad/s below it and in the listed
+        // rows above it (row 90 lies in the first band, row 20 in the second, the topmost
+        // there is). That band, with one more, makes a rotation; with the principal point at
+        // the top, the rows below do.
+        for (cy, above, answers) in [
+            (100, &[90u16, 20][..], true),
+            (100, &[90][..], false),
+            (100, &[20][..], false),
+            (0, &[][..], true),
+        ] {
+            let mut f = field_with_principal_row(cy);
+            for _ in 0..30 {
+                for (side, band, _) in all_bands(|_, _| 300) {
+                    let (x, _) = pixel(side, band, false, 0);
+                    for &y in above.iter().chain(&[150, 200, 250]) {
+                        for _ in 0..2 {
+                            f.add(Population::Fast, x, y, log2_rate(300), true);
+                        }
+                    }
+                }
+                f.age();
+            }
+            let v = rad_s(f.estimate());
+            assert_eq!(
+                v.is_some(),
+                answers,
+                "principal row {cy}, rows {above:?}: {v:?}"
+            );
             if let Some(v) = v {
                 assert!((v - 0.3).abs() < 0.05, "{v}");
             }

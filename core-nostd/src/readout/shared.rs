@@ -4,7 +4,7 @@
 
 use fixed::types::{I16F16, U16F16};
 
-use super::field::{Field, FieldEstimate, FieldGeometry, FieldSettings, COL_BANDS};
+use super::field::{Coverage, Field, FieldEstimate, FieldGeometry, FieldSettings, COL_BANDS};
 use crate::flags;
 use crate::layout::Layout;
 use crate::log2::log2_q16;
@@ -137,8 +137,8 @@ pub fn field_over<L: Layout>(
     let (cx, cy) = (i64::from(cx.to_bits()), i64::from(cy.to_bits()));
     let (xs, ys) = unit_span(layout);
     let geometry = FieldGeometry::spanning(cx, cy, i64::from(focal_px.to_bits()), xs, ys);
-    let paired_bands = paired_bands(layout, &geometry);
-    Field::new(geometry, settings, tau_us, period_us, paired_bands)
+    let coverage = coverage(layout, &geometry);
+    Field::new(geometry, settings, tau_us, period_us, coverage)
 }
 
 /// Bounding box of the pixels that have units: `((x_min, x_max), (y_min, y_max))`.
@@ -160,21 +160,30 @@ fn unit_span<L: Layout>(layout: &L) -> ((u16, u16), (u16, u16)) {
     ((x0, x1), (y0, y1))
 }
 
-/// Column bands in which the layout has units on both sides of the principal point (0 when
-/// its regions never mirror, which switches the field to its unpaired fallback).
-fn paired_bands<L: Layout>(layout: &L, g: &FieldGeometry) -> u8 {
+/// The bands the layout's units reach: column bands with units on both sides of the principal
+/// point (0 when its regions never mirror, which switches the field to its unpaired fallback),
+/// and row bands above the principal row, up to the topmost with units.
+fn coverage<L: Layout>(layout: &L, g: &FieldGeometry) -> Coverage {
     let mut seen = [[false; COL_BANDS]; 2];
+    let mut above_bands = 0u8;
     for c in 0..layout.cell_count() {
         if layout.units(c) == 0 {
             continue;
         }
-        let (side, band) = g.column(layout.pixel(c).0);
+        let (x, y) = layout.pixel(c);
+        let (side, band) = g.column(x);
         if let Some(s) = seen.get_mut(side).and_then(|s| s.get_mut(band)) {
             *s = true;
         }
+        if let (0, row) = g.row(y) {
+            above_bands = above_bands.max(row as u8 + 1);
+        }
     }
     let [l, r] = seen;
-    l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count() as u8
+    Coverage {
+        paired_bands: l.iter().zip(r.iter()).filter(|(a, b)| **a && **b).count() as u8,
+        above_bands,
+    }
 }
 
 /// When the field is read and what an output says: nothing during the warm-up (at least
