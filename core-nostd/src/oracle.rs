@@ -511,6 +511,7 @@ impl OracleStrideChoice {
 
 const ORACLE_BINS: usize = crate::readout::field::BINS;
 const COLS: usize = crate::readout::field::COL_BANDS;
+const SETTLED_MINORITY_LOG2: u32 = crate::readout::field::SETTLED_MINORITY_LOG2;
 const ROWS: usize = crate::readout::field::ROW_BANDS;
 
 impl<L: crate::layout::Layout> OracleYaw<L> {
@@ -1405,6 +1406,7 @@ pub struct OracleField {
     tau_a: f64,
     period: f64,
     min_samples: f64,
+    settled_samples: f64,
     spread_floor: f64,
     support: u8,
     band: (f64, f64),
@@ -1446,6 +1448,7 @@ impl OracleField {
             tau_a: tau_a_us,
             period: period_us,
             min_samples: f64::from(fs.min_samples_q16) / 65536.0,
+            settled_samples: f64::from(crate::readout::field::SETTLED_SAMPLES_Q16) / 65536.0,
             spread_floor: f64::from(fs.spread_floor_q16) / 65536.0,
             support: fs.support,
             band,
@@ -1683,6 +1686,32 @@ impl OracleField {
             acc += m;
         }
         let [(_, q1), (_, median), (_, q3)] = q;
+        // A region whose decodes agree in sign, in one peak, reads its majority sign's median
+        // (see `field::majority_median`).
+        let (n, p): (f64, f64) = (neg.iter().sum(), pos.iter().sum());
+        let majority = n.max(p);
+        let settled = total >= self.settled_samples
+            && (total - majority) * f64::from(1u32 << SETTLED_MINORITY_LOG2) <= total;
+        let median = if settled {
+            let bins = if p >= n { pos } else { neg };
+            let mut acc = 0.0;
+            let mut v = median;
+            for (i, &m) in bins.iter().enumerate() {
+                if m > 0.0 && acc + m >= majority / 2.0 {
+                    let r = (lo + (i as f64 + (majority / 2.0 - acc) / m) * bw).exp2();
+                    let r = if p >= n { r } else { -r };
+                    // One peak only: within half of the signed median.
+                    if (r < 0.0) == (median < 0.0) && (r - median).abs() <= median.abs() / 2.0 {
+                        v = r;
+                    }
+                    break;
+                }
+                acc += m;
+            }
+            v
+        } else {
+            median
+        };
         let iqr = (q3 - q1).abs().max(self.spread_floor);
         Some((median, iqr * iqr / total.floor().max(1.0)))
     }

@@ -30,7 +30,10 @@
 //!   precision the interquartile range over the number of samples: where edges also move
 //!   vertically (the ground under forward motion) a horizontal unit suffers the aperture
 //!   problem and its decodes spread widely around the true horizontal flow, so such regions
-//!   count little.
+//!   count little. A region whose decodes agree in sign (at most a quarter the other way) and
+//!   that holds [`SETTLED_SAMPLES_Q16`] reads the median of its majority sign
+//!   instead: there the other sign's decodes are timing errors, which would pull the signed
+//!   median towards slow rates (`majority_median`).
 //! - Per column band and side: the inverse-variance weighted least-squares intercept of the
 //!   region values against `Y` (slopes with a weak prior).
 //! - Every left band's intercept is paired with every right band's (up to
@@ -111,6 +114,16 @@ pub struct Coverage {
 }
 /// Histogram bins per region and sign.
 pub const BINS: usize = 64;
+
+/// Decoded bursts (leaky, Q16) from which a region whose decodes agree in sign reads the
+/// median of that sign (`majority_median`); below, its signed median. Where motion has just
+/// started (a hover's turn after a pause) a region's first decodes agree in sign and
+/// overshoot; 32 is past them on the hover scenes.
+pub const SETTLED_SAMPLES_Q16: u32 = 32 << 16;
+
+/// A region's decodes agree in sign when at most `2^-SETTLED_MINORITY_LOG2` of them (a
+/// quarter) take the other sign (see `majority_median`).
+pub const SETTLED_MINORITY_LOG2: u32 = 2;
 
 /// Lowest and highest |rate| the histograms resolve (rad/s); outside values fall into the end
 /// bins.
@@ -319,11 +332,17 @@ pub enum Population {
     Slow = 1,
 }
 
-/// The leaky per-region histograms, one set per [`Population`], and the estimator (12 KiB of
+/// The leaky per-region histograms, one set per [`Population`], and the estimator (48 KiB of
 /// bins).
 pub struct Field {
     geometry: FieldGeometry,
     settings: FieldSettings,
+    /// Tests only: [`SETTLED_SAMPLES_Q16`], or more to compare with the signed median alone.
+    /// (Not a field of the product's build: one more word in this struct costs the F405
+    /// window 8 instructions per event in QEMU, from how the compiler then lays out and
+    /// inlines the per-event path.)
+    #[cfg(test)]
+    settled_q16: u32,
     /// `[population][region][sign][bin]`, sign 0 = negative, 1 = positive.
     hist: [[[[u32; BINS]; 2]; REGIONS]; 2],
     /// Current weight of one sample per population (Q16; in `[1, 2)` samples after
@@ -368,6 +387,8 @@ impl Field {
         Self {
             geometry,
             settings,
+            #[cfg(test)]
+            settled_q16: SETTLED_SAMPLES_Q16,
             hist: [[[[0; BINS]; 2]; REGIONS]; 2],
             weight: [UNIT_WEIGHT; 2],
             grow_half_q31: [grow(fast), grow(slow)],
@@ -477,7 +498,8 @@ impl Field {
     /// One population's statistics in a region, or `None` with fewer than `min_samples`.
     fn population_value(&self, pop: Population, region: usize) -> Option<RegionStats> {
         let [neg, pos] = self.hist.get(pop as usize)?.get(region)?;
-        let total: u64 = self.mass.get(pop as usize)?.get(region)?.iter().sum();
+        let masses = *self.mass.get(pop as usize)?.get(region)?;
+        let total: u64 = masses.iter().sum();
         let weight = u64::from(
             self.weight
                 .get(pop as usize)
@@ -504,23 +526,9 @@ impl Field {
             let m = u64::from(m);
             while found < 3 && m > 0 && acc + m >= targets.get(found).copied().unwrap_or(0) {
                 let need = targets.get(found).copied().unwrap_or(0).saturating_sub(acc);
-                // Position within the bin along increasing signed rate (`need <= m < 2^32`;
-                // both cut to 16 bits so that the division is a 32-bit one, to 2^-15).
-                let cut = (64 - m.leading_zeros()).saturating_sub(16);
-                let frac_q16 = i64::from(
-                    (((need >> cut) as u32) << 16)
-                        .checked_div((m >> cut) as u32)
-                        .unwrap_or(0)
-                        .min(1 << 16),
-                );
-                let frac_abs = if positive {
-                    frac_q16
-                } else {
-                    (1 << 16) - frac_q16
-                };
-                let pos_q16 = ((i as i64) << 16) + frac_abs;
-                let l2 = i64::from(LOG2_LO) + ((pos_q16 * i64::from(BIN_W)) >> 16);
-                let v = i64::from(exp2_q16(l2.clamp(i64::from(i32::MIN), 0x7FFF_FFFF) as i32));
+                // The walk goes along increasing signed rate: up the positive bins, down the
+                // negative ones.
+                let v = bin_rate_q16(i, need, m, positive);
                 if let Some(o) = out.get_mut(found) {
                     *o = if positive { v } else { -v };
                 }
@@ -532,7 +540,15 @@ impl Field {
             }
         }
         let [q1, signed_median, q3] = out;
-        let median = signed_median;
+        #[cfg(test)]
+        let settled_q16 = self.settled_q16;
+        #[cfg(not(test))]
+        let settled_q16 = SETTLED_SAMPLES_Q16;
+        let median = if samples_q16 >= u64::from(settled_q16) {
+            majority_median([neg, pos], masses, signed_median).unwrap_or(signed_median)
+        } else {
+            signed_median
+        };
         let samples = (samples_q16 >> 16).max(1);
         let iqr = (q3 - q1)
             .unsigned_abs()
@@ -752,6 +768,65 @@ impl Field {
     }
 }
 
+/// |rate| (Q16 rad/s) `need` samples into bin `i`, which holds `m` (`need <= m < 2^32`),
+/// walking it up (towards higher |rate|) or down; linear in `log2 |r|` within the bin.
+fn bin_rate_q16(i: usize, need: u64, m: u64, up: bool) -> i64 {
+    // Both cut to 16 bits so that the division is a 32-bit one, to 2^-15.
+    let cut = (64 - m.leading_zeros()).saturating_sub(16);
+    let frac_q16 = i64::from(
+        (((need >> cut) as u32) << 16)
+            .checked_div((m >> cut) as u32)
+            .unwrap_or(0)
+            .min(1 << 16),
+    );
+    let frac_up = if up { frac_q16 } else { (1 << 16) - frac_q16 };
+    let pos_q16 = ((i as i64) << 16) + frac_up;
+    let l2 = i64::from(LOG2_LO) + ((pos_q16 * i64::from(BIN_W)) >> 16);
+    i64::from(exp2_q16(l2.clamp(i64::from(i32::MIN), 0x7FFF_FFFF) as i32))
+}
+
+/// The median rate of a region's majority sign (Q16 rad/s, signed; histograms `[neg, pos]` and
+/// their masses `[n, p]`), when at most a quarter of its decodes ([`SETTLED_MINORITY_LOG2`])
+/// take the other sign and it lies within half of the region's signed median `signed` (same
+/// sign); else `None`.
+///
+/// Where a region's decodes agree in sign, the few of the other sign are timing errors: a
+/// TRG pixel that fires before its FAC neighbour for the same edge (threshold mismatch,
+/// jitter) decodes a fast crossing the wrong way, and the signed median, which walks the
+/// other sign first, moves by their share towards slow rates (fast constant turns read
+/// 5-8 % low). For one peak of decodes that share moves the median by a fraction of the
+/// peak's width; a larger move means the majority's decodes are not one peak (a lamp's
+/// flicker decodes both very slow and very fast crossings at the view's edges) and the
+/// signed median stays. Where the signs are mixed (the aperture problem under pitch and
+/// roll, the ground under translation), its pull towards 0 is kept too: the region does not
+/// know its direction.
+#[inline(never)]
+fn majority_median([neg, pos]: [&[u32; BINS]; 2], [n, p]: [u64; 2], signed: i64) -> Option<i64> {
+    let (bins, positive, majority) = if p >= n {
+        (pos, true, p)
+    } else {
+        (neg, false, n)
+    };
+    let total = n + p;
+    if majority == 0 || (total - majority) << SETTLED_MINORITY_LOG2 > total {
+        return None;
+    }
+    let target = majority / 2;
+    let mut acc = 0u64;
+    for (i, &m) in bins.iter().enumerate() {
+        let m = u64::from(m);
+        if m > 0 && acc + m >= target {
+            let v = bin_rate_q16(i, target.saturating_sub(acc), m, true);
+            let v = if positive { v } else { -v };
+            let one_peak =
+                (v < 0) == (signed < 0) && v.abs_diff(signed) <= signed.unsigned_abs() / 2;
+            return one_peak.then_some(v);
+        }
+        acc += m;
+    }
+    None
+}
+
 /// Whether a field's values are spread over the view as a rotation's are (the rule of
 /// [`Field`] and of the f64 oracle's field): a value in some column band on each side of the
 /// principal point (what is odd in `X` must cancel), and either `support` mirrored bands (at
@@ -910,6 +985,79 @@ mod tests {
         );
         let v = rad_s(f.estimate()).expect("a rotation");
         assert!((v - 0.3).abs() < 0.01, "{v}");
+    }
+
+    /// Feeds 60 ms of decodes of the paper's units into every region: every `every`
+    /// periods, one decode per listed rate (mrad/s, signed).
+    fn feed_everywhere(f: &mut Field, rates: &[i64], every: usize) {
+        for period in 0..60 {
+            if period % every != 0 {
+                f.age();
+                continue;
+            }
+            for (side, band) in all_bands(|_, _| 0).map(|(s, b, _)| (s, b)) {
+                for row in 0..ROW_BANDS {
+                    for up in [false, true] {
+                        let (x, y) = pixel(side, band, up, row);
+                        for &rate in rates {
+                            let l2 = log2_rate(rate.unsigned_abs());
+                            f.add(Population::Fast, x, y, l2, rate > 0);
+                        }
+                    }
+                }
+            }
+            f.age();
+        }
+    }
+
+    /// The estimates after [`feed_everywhere`] of the product's field and of one that always
+    /// reads the signed median.
+    fn with_and_without_majority(rates: &[i64], every: usize) -> (FieldEstimate, FieldEstimate) {
+        let (mut f, mut g) = (field(), field());
+        g.settled_q16 = u32::MAX;
+        feed_everywhere(&mut f, rates, every);
+        feed_everywhere(&mut g, rates, every);
+        (f.estimate(), g.estimate())
+    }
+
+    #[test]
+    fn a_region_agreeing_in_sign_reads_its_majority_median() {
+        // Nine decodes spread evenly (in log) around 1 rad/s and one fast decode of the other
+        // sign (a TRG pixel that fired before its FAC neighbour), per region and period.
+        let rates = [800, 850, 900, 950, 1000, 1050, 1110, 1170, 1250, -3000];
+        let (majority, signed) = with_and_without_majority(&rates, 1);
+        let v = rad_s(majority).expect("a rotation");
+        assert!((v - 1.0).abs() < 0.02, "majority median {v}");
+        // The signed median walks the other sign first and reads the 40th percentile of the
+        // majority: 5 % low here.
+        let w = rad_s(signed).expect("a rotation");
+        assert!(w < 0.975 && w > 0.9, "signed median {w}");
+    }
+
+    #[test]
+    fn a_majority_in_two_peaks_keeps_the_signed_median() {
+        // Agreeing in sign (one decode in ten the other way), but the majority's decodes lie in
+        // two clusters, 0.5 and 6 rad/s: its median jumps between them, 12 times the signed
+        // median.
+        let rates = [480, 500, 520, 540, 6000, 6200, 6400, 6600, 6800, -7000];
+        let (majority, signed) = with_and_without_majority(&rates, 1);
+        assert_eq!(majority, signed);
+    }
+
+    #[test]
+    fn mixed_signs_or_few_decodes_keep_the_signed_median() {
+        // Three of ten decodes the other way: the region does not know its direction.
+        let mixed = [800, 900, 1000, 1100, 1200, 1300, 1400, -900, -1000, -1100];
+        let (majority, signed) = with_and_without_majority(&mixed, 1);
+        assert_eq!(majority, signed);
+        // Decodes agreeing in sign, but about 14 in each region's memory (the settled count
+        // is 32), as where motion has just started.
+        let few = [900, 1000, 1100, -3000];
+        let (majority, signed) = with_and_without_majority(&few, 3);
+        assert_eq!(majority, signed);
+        // The same decodes every period (about 42) do read the majority.
+        let (majority, signed) = with_and_without_majority(&few, 1);
+        assert_ne!(majority, signed);
     }
 
     #[test]
