@@ -1406,7 +1406,6 @@ pub struct OracleField {
     tau_a: f64,
     period: f64,
     min_samples: f64,
-    settled_samples: f64,
     spread_floor: f64,
     support: u8,
     band: (f64, f64),
@@ -1448,7 +1447,6 @@ impl OracleField {
             tau_a: tau_a_us,
             period: period_us,
             min_samples: f64::from(fs.min_samples_q16) / 65536.0,
-            settled_samples: f64::from(crate::readout::field::SETTLED_SAMPLES_Q16) / 65536.0,
             spread_floor: f64::from(fs.spread_floor_q16) / 65536.0,
             support: fs.support,
             band,
@@ -1657,12 +1655,15 @@ impl OracleField {
     /// `(median, variance of the median)` in region `i`.
     fn region_value(&self, i: usize) -> Option<(f64, f64)> {
         let [neg, pos] = self.hist.get(i)?;
-        let total: f64 = neg.iter().chain(pos.iter()).sum();
+        let (n, p): (f64, f64) = (neg.iter().sum(), pos.iter().sum());
+        let total = n + p;
         if total <= 0.0 || total < self.min_samples {
             return None;
         }
         let (lo, hi) = (0.01f64.log2(), 20.0f64.log2());
         let bw = (hi - lo) / ORACLE_BINS as f64;
+        // |rate| at position `at` (0..1, up the rates) within bin `i`.
+        let rate = |i: usize, at: f64| (lo + (i as f64 + at) * bw).exp2();
         let signed = neg
             .iter()
             .enumerate()
@@ -1679,8 +1680,7 @@ impl OracleField {
         for (i, m, positive) in signed {
             while let Some((target, value)) = pending.next_if(|(t, _)| m > 0.0 && acc + m >= *t) {
                 let frac = (*target - acc) / m;
-                let f = if positive { frac } else { 1.0 - frac };
-                let v = (lo + (i as f64 + f) * bw).exp2();
+                let v = rate(i, if positive { frac } else { 1.0 - frac });
                 *value = if positive { v } else { -v };
             }
             acc += m;
@@ -1688,30 +1688,26 @@ impl OracleField {
         let [(_, q1), (_, median), (_, q3)] = q;
         // A region whose decodes agree in sign, in one peak, reads its majority sign's median
         // (see `field::majority_median`).
-        let (n, p): (f64, f64) = (neg.iter().sum(), pos.iter().sum());
-        let majority = n.max(p);
-        let settled = total >= self.settled_samples
-            && (total - majority) * f64::from(1u32 << SETTLED_MINORITY_LOG2) <= total;
-        let median = if settled {
-            let bins = if p >= n { pos } else { neg };
-            let mut acc = 0.0;
-            let mut v = median;
-            for (i, &m) in bins.iter().enumerate() {
-                if m > 0.0 && acc + m >= majority / 2.0 {
-                    let r = (lo + (i as f64 + (majority / 2.0 - acc) / m) * bw).exp2();
-                    let r = if p >= n { r } else { -r };
-                    // One peak only: within half of the signed median.
-                    if (r < 0.0) == (median < 0.0) && (r - median).abs() <= median.abs() / 2.0 {
-                        v = r;
-                    }
-                    break;
-                }
-                acc += m;
-            }
-            v
+        let settled_samples = f64::from(crate::readout::field::SETTLED_SAMPLES_Q16) / 65536.0;
+        let (bins, sign, majority) = if p >= n {
+            (pos, 1.0, p)
         } else {
-            median
+            (neg, -1.0, n)
         };
+        let agree = total >= settled_samples
+            && (total - majority) * f64::from(1u32 << SETTLED_MINORITY_LOG2) <= total;
+        let mut acc = 0.0;
+        let majority_median = bins
+            .iter()
+            .enumerate()
+            .take_while(|_| agree)
+            .find_map(|(i, &m)| {
+                let at = (majority / 2.0 - acc) / m;
+                acc += m;
+                (m > 0.0 && at <= 1.0).then(|| sign * rate(i, at))
+            })
+            .filter(|&r| (r < 0.0) == (median < 0.0) && (r - median).abs() <= median.abs() / 2.0);
+        let median = majority_median.unwrap_or(median);
         let iqr = (q3 - q1).abs().max(self.spread_floor);
         Some((median, iqr * iqr / total.floor().max(1.0)))
     }
