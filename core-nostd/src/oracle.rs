@@ -1408,7 +1408,7 @@ pub struct OracleField {
     min_samples: f64,
     spread_floor: f64,
     support: u8,
-    band: (f64, f64),
+    band: (f64, [f64; 2]),
     coverage: crate::readout::field::Coverage,
     /// `[region][sign][bin]`.
     hist: std::vec::Vec<[[f64; ORACLE_BINS]; 2]>,
@@ -1438,7 +1438,7 @@ impl OracleField {
         }
         let band = (
             ((cx - x0).max(x1 - cx).max(1.0) / COLS as f64).max(1.0),
-            ((cy - y0).max(y1 - cy).max(1.0) / ROWS as f64).max(1.0),
+            [cy - y0, y1 - cy].map(|h| (h / ROWS as f64).max(1.0)),
         );
         let mut me = Self {
             focal,
@@ -1482,8 +1482,10 @@ impl OracleField {
         let dx = f64::from(x) + 0.5 - self.cx;
         let dy = f64::from(y) + 0.5 - self.cy;
         let b = ((dx.abs() / self.band.0) as usize).min(COLS - 1);
-        let r = ((dy.abs() / self.band.1) as usize).min(ROWS - 1);
-        (usize::from(dx >= 0.0), b, usize::from(dy >= 0.0), r)
+        let v = usize::from(dy >= 0.0);
+        let h = self.band.1.get(v).copied().unwrap_or(1.0);
+        let r = ((dy.abs() / h) as usize).min(ROWS - 1);
+        (usize::from(dx >= 0.0), b, v, r)
     }
 
     /// Index of the region of a pixel (as [`crate::readout::field::FieldGeometry::region`]).
@@ -1624,8 +1626,8 @@ impl OracleField {
                     continue;
                 };
                 let w = 1.0 / var;
-                let y =
-                    (row as f64 + 0.5) * self.band.1 / self.focal * if v == 0 { -1.0 } else { 1.0 };
+                let h = self.band.1.get(v).copied().unwrap_or(1.0);
+                let y = (row as f64 + 0.5) * h / self.focal * if v == 0 { -1.0 } else { 1.0 };
                 s += w;
                 r_sum += w * m;
                 if let Some(h) = half.get_mut(v) {

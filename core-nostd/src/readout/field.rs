@@ -49,11 +49,11 @@
 //!   principal row, the topmost band among them: far scenery above the horizon moves with a
 //!   rotation, while objects on the ground (people, cars crossing the view of a camera that
 //!   stands still) and the ground under translation move the rows below it and the lower bands
-//!   above it. Row bands are mirrored, a third of the longer half of the layout's rows each;
-//!   where the principal point lies above the middle of those rows, fewer bands have rows
-//!   above it, and the topmost of those counts as the top band ([`Coverage`]; none is asked
-//!   for when no row lies above it). Assumed: the camera is upright and sees textured scenery
-//!   in that band.
+//!   above it. Row bands are a third of the layout's rows on their own side of the principal
+//!   row each (column bands are mirrored, row bands need not be: each half has its own
+//!   slope), so the top band is the upper third of the rows above the principal row wherever
+//!   the principal point lies ([`Coverage`]; none is asked for when no row lies above it).
+//!   Assumed: the camera is upright and sees textured scenery in that band.
 //! - When more than a quarter of that weight ([`SPLIT_SHARE`]) says the other direction, the
 //!   field does not know which way the camera turns: "no rotation evidence" (just after a
 //!   reversal; straight driving past scenery at different depths either side).
@@ -89,8 +89,9 @@ pub const REGIONS: usize = 4 * COL_BANDS * ROW_BANDS;
 /// ground, `h` tall at distance `d` from a camera at height `c`, reaches `(h - c) / d · f`
 /// above the principal row: a person 1.8 m tall at 2 m seen from 1.7 m 0.05 f, but seen from
 /// 1.2 m (a drone hovering low) 0.3 f, into the second row band (row bands are a third of the
-/// half-height each: the top one starts 0.38 f above on a DAVIS346, 0.30 f on a DAVIS240, out
-/// of a 1.9 m person's reach beyond 1.8 / 2.3 m from a camera at 1.2 m). So motion in the lower
+/// rows on their side each: with the principal point at the centre the top one starts 0.38 f
+/// above on a DAVIS346, 0.30 f on a DAVIS240, out of a 1.9 m person's reach beyond 1.8 / 2.3
+/// m from a camera at 1.2 m; with the principal point above the centre it starts lower). So motion in the lower
 /// half and the lower row bands above only is an object's, or the ground's under translation
 /// (which the fit cannot tell from a yaw where the ground's edges suffer the aperture
 /// problem). Without the top band, people walking past 2-3 m from a camera at 1.2 m read as
@@ -107,9 +108,8 @@ pub struct Coverage {
     pub paired_bands: u8,
     /// Row bands above the principal row that have units, from the principal row up (the
     /// topmost of them is the top row band of [`ABOVE_SUPPORT`]): [`ROW_BANDS`] when the
-    /// layout reaches as far above the principal point as below, fewer when the principal
-    /// point lies above the middle of the layout's rows (the bands are mirrored: each a third
-    /// of the longer half), 0 when the layout has no row above it.
+    /// layout has rows above the principal point (the bands above split those rows), 0 when
+    /// it has none.
     pub above_bands: u8,
 }
 /// Histogram bins per region and sign.
@@ -211,16 +211,20 @@ pub struct FieldGeometry {
     cy_q16: i64,
     /// Inner edges of column bands 1.. (distance from `c_x`, Q16 px, increasing).
     col_edges: [u64; COL_BANDS - 1],
-    /// Inner edges of row bands 1.. (distance from `c_y`, Q16 px, increasing).
-    row_edges: [u64; ROW_BANDS - 1],
-    /// `|Y|` at the centre of each row band, Q12 (at most 2).
-    row_centres_q12: [i64; ROW_BANDS],
+    /// Inner edges of row bands 1.. (distance from `c_y`, Q16 px, increasing), above and
+    /// below the principal row.
+    row_edges: [[u32; ROW_BANDS - 1]; 2],
+    /// `|Y|` at the centre of each row band, Q12 (at most 2), above and below.
+    row_centres_q12: [[i32; ROW_BANDS]; 2],
 }
 
 impl FieldGeometry {
-    /// Bands that split the span `[x_min, x_max] x [y_min, y_max]` (pixels with units) into
-    /// equal bands (each at least 1 px) either side of the principal point `(cx, cy)`, for a
-    /// focal length `focal_q16` (all Q16 px).
+    /// Bands that split the span `[x_min, x_max] x [y_min, y_max]` (pixels with units) either
+    /// side of the principal point `(cx, cy)`, for a focal length `focal_q16` (all Q16 px):
+    /// column bands mirrored about `c_x` (a [`COL_BANDS`]th of the longer half each, so that
+    /// mirrored bands see mirrored flow), row bands a [`ROW_BANDS`]th of the rows on their own
+    /// side of `c_y` each (so that the top band above the principal row is a full band
+    /// wherever the principal point lies); every band at least 1 px.
     pub fn spanning(
         cx_q16: i64,
         cy_q16: i64,
@@ -228,27 +232,32 @@ impl FieldGeometry {
         x: (u16, u16),
         y: (u16, u16),
     ) -> Self {
-        let half = |c: i64, (lo, hi): (u16, u16)| -> i64 {
+        // The span's extent before and after the centre `c` (Q16 px).
+        let halves = |c: i64, (lo, hi): (u16, u16)| -> [i64; 2] {
             let lo = i64::from(lo) << 16;
             let hi = (i64::from(hi) + 1) << 16;
-            (c - lo).max(hi - c).max(1 << 16)
+            [c - lo, hi - c]
         };
-        let col_w = (half(cx_q16, x) / COL_BANDS as i64).max(1 << 16);
-        let row_h = (half(cy_q16, y) / ROW_BANDS as i64).max(1 << 16);
+        let [left, right] = halves(cx_q16, x);
+        let col_w = (left.max(right) / COL_BANDS as i64).max(1 << 16);
+        let row_h = halves(cy_q16, y).map(|h| (h / ROW_BANDS as i64).max(1 << 16));
         let focal = focal_q16.max(1 << 16);
         let mut col_edges = [0u64; COL_BANDS - 1];
         for (k, e) in col_edges.iter_mut().enumerate() {
             *e = (k as u64 + 1) * col_w.unsigned_abs();
         }
-        let mut row_edges = [0u64; ROW_BANDS - 1];
-        for (k, e) in row_edges.iter_mut().enumerate() {
-            *e = (k as u64 + 1) * row_h.unsigned_abs();
-        }
-        let mut row_centres_q12 = [0i64; ROW_BANDS];
-        for (k, c) in row_centres_q12.iter_mut().enumerate() {
-            let dy = (2 * k as i64 + 1) * row_h / 2; // Q16 px
-            *c = ((dy << 12) / focal).clamp(0, 2 << 12);
-        }
+        // (32-bit words: the field's size is that of mirrored bands, one set.)
+        let row_edges = row_h.map(|h| {
+            core::array::from_fn(|k| {
+                u32::try_from((k as u64 + 1) * h.unsigned_abs()).unwrap_or(u32::MAX)
+            })
+        });
+        let row_centres_q12 = row_h.map(|h| {
+            core::array::from_fn(|k| {
+                let dy = (2 * k as i64 + 1) * h / 2; // Q16 px
+                ((dy << 12) / focal).clamp(0, 2 << 12) as i32
+            })
+        });
         Self {
             cx_q16,
             cy_q16,
@@ -258,10 +267,14 @@ impl FieldGeometry {
         }
     }
 
-    /// Normalised row `|Y| = |y - c_y| / f` at the centre of row band `row`, in Q12 (the half
-    /// above the principal point uses its negative), at most 2.
-    pub fn row_centre_abs_q12(&self, row: usize) -> i64 {
-        self.row_centres_q12.get(row).copied().unwrap_or(0)
+    /// Normalised row `|Y| = |y - c_y| / f` at the centre of row band `row` above (`vside`
+    /// 0) or below (1) the principal row, in Q12 (the half above uses its negative), at
+    /// most 2.
+    pub fn row_centre_abs_q12(&self, vside: usize, row: usize) -> i64 {
+        self.row_centres_q12
+            .get(vside)
+            .and_then(|c| c.get(row))
+            .map_or(0, |&c| i64::from(c))
     }
 
     /// `(side, band)` of column `x`: side 1 at or right of the principal point.
@@ -280,10 +293,11 @@ impl FieldGeometry {
     #[inline]
     pub fn row(&self, y: u16) -> (usize, usize) {
         let dy = (i64::from(y) << 16) + (1 << 15) - self.cy_q16;
-        let row = self
-            .row_edges
+        let [above, below] = &self.row_edges;
+        let edges = if dy >= 0 { below } else { above };
+        let row = edges
             .iter()
-            .filter(|&&e| dy.unsigned_abs() >= e)
+            .filter(|&&e| dy.unsigned_abs() >= u64::from(e))
             .count();
         (usize::from(dy >= 0), row)
     }
@@ -730,7 +744,7 @@ impl Field {
                 if w == 0 {
                     continue;
                 }
-                let y_abs = self.geometry.row_centre_abs_q12(row);
+                let y_abs = self.geometry.row_centre_abs_q12(vside, row);
                 let y = if vside == 0 { -y_abs } else { y_abs };
                 let r = (st.median >> 4).clamp(-(1 << 21), 1 << 21);
                 s += w;
@@ -1161,23 +1175,28 @@ mod tests {
     }
 
     #[test]
-    fn the_top_row_band_is_the_topmost_the_layout_has_above_the_principal_point() {
-        // Row bands are a third of the longer half each: with the principal point 100 rows
-        // down of 260 (160 below), the rows above reach into the second band only, and a
-        // principal point at the top leaves none above.
-        for (cy, bands) in [(130, 3), (100, 2), (40, 1), (0, 0)] {
+    fn the_top_row_band_is_the_upper_third_of_the_rows_above_the_principal_point() {
+        // Row bands are a third of the rows on their own side each: wherever the principal
+        // row lies, the rows above it make three bands (none when it is at the top).
+        for (cy, bands) in [(130, 3), (110, 3), (100, 3), (40, 3), (0, 0)] {
             let f = field_with_principal_row(cy);
             assert_eq!(f.coverage.above_bands, bands, "principal row {cy}");
             assert_eq!(f.coverage.paired_bands, COL_BANDS as u8);
         }
-        // Principal row 100: every column band moves at 0.3 rad/s below it and in the listed
-        // rows above it (row 90 lies in the first band, row 20 in the second, the topmost
-        // there is). That band, with one more, makes a rotation; with the principal point at
-        // the top, the rows below do.
+        // Every column band moves at 0.3 rad/s below the principal row and in the listed rows
+        // above it. Principal row 100 (bands of 33 rows above): row 90 lies in the first band,
+        // row 50 in the second, row 20 in the top one; principal row 110 (bands of 37 rows
+        // above, where bands mirrored from the 150 rows below were 50 rows and the top one a
+        // 10-row sliver): row 80 in the first band, row 50 in the second, row 30 in the top
+        // one. The top band with one more makes a rotation; with the principal point at the
+        // top, the rows below do.
         for (cy, above, answers) in [
             (100, &[90u16, 20][..], true),
+            (100, &[90, 50][..], false),
             (100, &[90][..], false),
             (100, &[20][..], false),
+            (110, &[80, 30][..], true),
+            (110, &[80, 50][..], false),
             (0, &[][..], true),
         ] {
             let mut f = field_with_principal_row(cy);
