@@ -711,7 +711,8 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
 
 /// [`crate::readout::shared::OutputGate`] in f64: "no evidence" for the first
 /// [`crate::readout::shared::WARMUP_US`], then the field's estimate, read every
-/// [`crate::readout::shared::REFRESH_US`] and repeated between.
+/// [`crate::readout::shared::REFRESH_US`] and repeated between; after "no evidence", a
+/// rotation once two readings in a row agree in sign.
 struct OracleGate {
     /// Outputs still to suppress.
     warmup_outputs: u32,
@@ -719,8 +720,10 @@ struct OracleGate {
     refresh: u32,
     /// Outputs since the last reading, modulo `refresh`.
     phase: u32,
-    /// The last reading.
+    /// What the outputs say until the next reading (`None`: no evidence).
     last: Option<f64>,
+    /// A rotation read right after "no evidence", held back until the next reading.
+    held: Option<f64>,
 }
 
 impl OracleGate {
@@ -731,13 +734,21 @@ impl OracleGate {
             refresh: (crate::readout::shared::REFRESH_US / period).max(1),
             phase: 0,
             last: None,
+            held: None,
         }
     }
 
     /// One output period: reads the fields when due, ages them, and says what to output.
     fn output(&mut self, fields: &mut [OracleField; 2], twins: bool) -> (f64, u8) {
         if self.phase == 0 {
-            self.last = two_population_estimate(fields, twins);
+            let now = two_population_estimate(fields, twins);
+            let confirmed =
+                matches!((self.held, now), (Some(h), Some(v)) if (v < 0.0) == (h < 0.0));
+            (self.last, self.held) = match now {
+                Some(v) if self.last.is_some() || confirmed => (Some(v), None),
+                Some(v) => (None, Some(v)),
+                None => (None, None),
+            };
         }
         self.phase = (self.phase + 1) % self.refresh;
         for field in fields.iter_mut() {

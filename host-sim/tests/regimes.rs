@@ -8,14 +8,15 @@
 //! them sees).
 //!
 //! The spike readout runs on the same scenes: its RMSE stays within a bound of the calibrated
-//! readout's (today's ratio with a margin: car 1.22, drone 1.29, hover 1.15, rotation 0.94;
-//! README: "Three readouts"), and on the static scene its RMS output within the same 0.03
+//! readout's (today's ratio with a margin: car 1.21, drone 1.28, hover 1.08, rotation 0.94;
+//! README: "Three readouts"), and on the static scenes its RMS output within the same 0.03
 //! rad/s.
 //!
 //! The bounds are what the readout reaches today with a margin (README: "Flight regimes"; on
-//! these scenes it reaches correlation 0.993 / 0.981 / 0.974 / 0.995, RMSE 5.9 / 11.9 / 13.9
-//! / 6.6 % of peak for car / drone / hover / rotation, "no evidence" while turning 1.2-3.0 %,
-//! and RMS output 0.000 and 0.000 rad/s for the static scenes; before the majority-sign
+//! these scenes it reaches correlation 0.994 / 0.982 / 0.975 / 0.996, RMSE 5.5 / 11.6 / 13.7
+//! / 6.2 % of peak for car / drone / hover / rotation, "no evidence" while turning 2.0-4.6 %,
+//! and RMS output 0.000 and 0.000 rad/s for the static scenes; before an answer after "no
+//! evidence" waited for a second reading 5.9 / 11.9 / 13.9 / 6.6 %; before the majority-sign
 //! region medians 6.0 / 13.4 / 13.6 / 6.5 %; before the near units 0.978 / 0.946 / 0.930 /
 //! 0.989 and 10.6 / 19.1 / 23.5 / 10.2 %); the issue's targets are tighter elsewhere and not
 //! all met: see the README for where it falls short.
@@ -265,6 +266,17 @@ fn people_walking_past_a_camera_flying_low() {
 fn people_walking_past_with_the_principal_point_above_the_centre() {
     let (f, s) = scene_with(Regime::Objects, 51, 4.0, |cfg| cfg.intrinsics.cy = 100.0);
     check_still("objects seed 51, principal row 100", &f, &s);
+}
+
+/// Moving objects in front of a still camera whose pixels fire at 1 Hz on their own
+/// (background activity): the noise's decodes give the top row band values of either sign, and
+/// the first reading after "no evidence" that answered used to pass them on (RMS output 0.048
+/// rad/s calibrated, 0.043 spikes). An answer after "no evidence" now waits for a second
+/// reading of its sign (`readout::shared::OutputGate`).
+#[test]
+fn moving_objects_in_front_of_a_noisy_sensor() {
+    let (f, s) = scene_with(Regime::Objects, 81, 3.0, |cfg| cfg.sensor.noise_hz = 1.0);
+    check_still("objects seed 81, 1 Hz background activity", &f, &s);
 }
 
 /// The real DAVIS346 recording: a static camera (gyro below 0.02 rad/s) and an object crossing

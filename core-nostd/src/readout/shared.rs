@@ -24,6 +24,10 @@ pub const WARMUP_US: u32 = 20_000;
 /// (10 ms), not over one period.
 pub const REFRESH_US: u32 = 4_000;
 
+/// [`OutputGate`]'s mark of a rotation it holds back (see there): a flag bit of its own, never
+/// output (bit 7, which the wire reserves as 0).
+const HELD: u8 = 1 << 7;
+
 /// Smallest TRG drive that makes a unit at rest burst (`q·tau/e >= 1`).
 pub fn min_burst_drive(kernel: &Kernel) -> Trace {
     let (mut lo, mut hi) = (0u32, crate::params::TRACE_MAX.to_bits());
@@ -190,6 +194,14 @@ fn coverage<L: Layout>(layout: &L, g: &FieldGeometry) -> Coverage {
 /// [`WARMUP_US`]), then the field's estimate, read every [`REFRESH_US`] and repeated between.
 /// A [`FieldEstimate::Rotation`] is output unflagged, a [`FieldEstimate::NoEvidence`] as 0
 /// flagged [`flags::NO_EVIDENCE`] (unknown, not zero rate).
+///
+/// A reading that shows a rotation right after "no evidence" is held back, output as "no
+/// evidence", until the next reading ([`REFRESH_US`] later: 4 ms at 1 kHz) shows a rotation of
+/// the same sign. Where motion starts (a hover's turn after a pause, the first decodes after a
+/// reversal), the first regions to fill decide the first reading, and a few of the paper's
+/// units timing an edge near the end of their window (where they alias) can give it either
+/// sign; background activity makes such readings too, now and then, in front of a still
+/// camera.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OutputGate {
     /// Outputs still to suppress (see [`WARMUP_US`]).
@@ -198,7 +210,8 @@ pub struct OutputGate {
     refresh: u32,
     /// Outputs since the last reading, modulo `refresh`.
     phase: u32,
-    /// The last reading.
+    /// The last reading: what the outputs say until the next one, or a rotation held back
+    /// (flagged `HELD`).
     last: (I16F16, u8),
 }
 
@@ -220,10 +233,7 @@ impl OutputGate {
         // The field is read every `refresh` outputs (its histograms change over tau_A, not
         // over one period); the outputs between repeat the last reading.
         if self.phase == 0 {
-            self.last = match field.estimate() {
-                FieldEstimate::Rotation(v) => (I16F16::from_bits(v), 0),
-                FieldEstimate::NoEvidence => (I16F16::ZERO, flags::NO_EVIDENCE),
-            };
+            self.read(field.estimate());
         }
         self.phase += 1;
         if self.phase >= self.refresh {
@@ -234,6 +244,65 @@ impl OutputGate {
             self.warmup_outputs -= 1;
             return (I16F16::ZERO, flags::NO_EVIDENCE);
         }
-        self.last
+        self.said()
+    }
+
+    /// What the outputs say until the next reading.
+    fn said(&self) -> (I16F16, u8) {
+        if self.last.1 & flags::NO_EVIDENCE != 0 {
+            (I16F16::ZERO, flags::NO_EVIDENCE)
+        } else {
+            self.last
+        }
+    }
+
+    /// Takes one reading of the field (see the type's docs). Not inlined: once every
+    /// [`REFRESH_US`], it stays out of the event path's code.
+    #[inline(never)]
+    fn read(&mut self, estimate: FieldEstimate) {
+        self.last = match estimate {
+            FieldEstimate::Rotation(v) => {
+                let (was, flags) = self.last;
+                let answering = flags & flags::NO_EVIDENCE == 0;
+                let confirmed = flags & HELD != 0 && (v < 0) == (was < I16F16::ZERO);
+                if answering || confirmed {
+                    (I16F16::from_bits(v), 0)
+                } else {
+                    (I16F16::from_bits(v), flags::NO_EVIDENCE | HELD)
+                }
+            }
+            FieldEstimate::NoEvidence => (I16F16::ZERO, flags::NO_EVIDENCE),
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_answer_after_no_evidence_waits_for_a_second_reading_of_its_sign() {
+        const NE: (I16F16, u8) = (I16F16::ZERO, flags::NO_EVIDENCE);
+        let r = |v: f32| FieldEstimate::Rotation(I16F16::from_num(v).to_bits());
+        let out = |v: f32| (I16F16::from_num(v), 0u8);
+        let mut gate = OutputGate::new(1_000, WARMUP_US);
+        let steps = [
+            (FieldEstimate::NoEvidence, NE),
+            // The first reading after none is held; the next of its sign answers.
+            (r(0.5), NE),
+            (r(0.25), out(0.25)),
+            // While answering, every reading is output, a change of sign too.
+            (r(-0.125), out(-0.125)),
+            (FieldEstimate::NoEvidence, NE),
+            // Readings that flip sign never agree twice: no answer.
+            (r(-0.5), NE),
+            (r(0.5), NE),
+            (r(-0.5), NE),
+            (r(-0.75), out(-0.75)),
+        ];
+        for (k, (reading, want)) in steps.into_iter().enumerate() {
+            gate.read(reading);
+            assert_eq!(gate.said(), want, "reading {k}");
+        }
     }
 }
