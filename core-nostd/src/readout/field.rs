@@ -91,10 +91,10 @@ pub const REGIONS: usize = 4 * COL_BANDS * ROW_BANDS;
 /// 1.2 m (a drone hovering low) 0.3 f, into the second row band (row bands are a third of the
 /// rows on their side each: with the principal point at the centre the top one starts 0.38 f
 /// above on a DAVIS346, 0.30 f on a DAVIS240, out of a 1.9 m person's reach beyond 1.8 / 2.3
-/// m from a camera at 1.2 m; with the principal point above the centre it starts lower). So motion in the lower
-/// half and the lower row bands above only is an object's, or the ground's under translation
-/// (which the fit cannot tell from a yaw where the ground's edges suffer the aperture
-/// problem). Without the top band, people walking past 2-3 m from a camera at 1.2 m read as
+/// m from a camera at 1.2 m; with the principal point above the centre it starts lower). So
+/// motion in the lower half and the lower row bands above only is an object's, or the
+/// ground's under translation (which the fit cannot tell from a yaw where the ground's edges
+/// suffer the aperture problem). Without the top band, people walking past 2-3 m from a camera at 1.2 m read as
 /// 0.4-0.8 rad/s turns (`--regime objects`, seeds 51 and 52).
 pub const ABOVE_SUPPORT: u32 = 2;
 
@@ -246,7 +246,8 @@ impl FieldGeometry {
         for (k, e) in col_edges.iter_mut().enumerate() {
             *e = (k as u64 + 1) * col_w.unsigned_abs();
         }
-        // (32-bit words: the field's size is that of mirrored bands, one set.)
+        // In 32-bit words: both halves' edges and centres take the room one set of 64-bit
+        // words took (the field's size, and with it the code's layout, is unchanged).
         let row_edges = row_h.map(|h| {
             core::array::from_fn(|k| {
                 u32::try_from((k as u64 + 1) * h.unsigned_abs()).unwrap_or(u32::MAX)

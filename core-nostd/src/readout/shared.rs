@@ -262,9 +262,9 @@ impl OutputGate {
     fn read(&mut self, estimate: FieldEstimate) {
         self.last = match estimate {
             FieldEstimate::Rotation(v) => {
-                let (was, flags) = self.last;
-                let answering = flags & flags::NO_EVIDENCE == 0;
-                let confirmed = flags & HELD != 0 && (v < 0) == (was < I16F16::ZERO);
+                let (was, marks) = self.last;
+                let answering = marks & flags::NO_EVIDENCE == 0;
+                let confirmed = marks & HELD != 0 && (v < 0) == (was < I16F16::ZERO);
                 if answering || confirmed {
                     (I16F16::from_bits(v), 0)
                 } else {
