@@ -20,8 +20,9 @@ pub const STALE: u8 = 1 << 0;
 /// The evidence did not pass the readout's gate (the first 20 ms; motion in too few column
 /// bands, or none in the upper row bands, as of objects moving on the ground; a field split
 /// in direction, as just after a reversal; decodes that have all but stopped; the first
-/// reading that answers after such a stretch, until the next agrees in sign). The value is 0,
-/// meaning "unknown", not "zero rate": it is not a measurement, and a flight controller should treat the sample as none
+/// reading that answers after such a stretch, until the next agrees in sign, unless it
+/// resumes within 12 ms with the sign it had). The value is 0, meaning "unknown", not "zero
+/// rate": it is not a measurement, and a flight controller should treat the sample as none
 /// (e.g. fall back to its gyro for it) rather than as the camera standing still.
 pub const NO_EVIDENCE: u8 = 1 << 1;
 /// Input was lost to overload: whole frames dropped because processing fell behind, the

@@ -712,7 +712,8 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
 /// [`crate::readout::shared::OutputGate`] in f64: "no evidence" for the first
 /// [`crate::readout::shared::WARMUP_US`], then the field's estimate, read every
 /// [`crate::readout::shared::REFRESH_US`] and repeated between; after "no evidence", a
-/// rotation once two readings in a row agree in sign.
+/// rotation once two readings in a row agree in sign, or at once when it has the sign of an
+/// answer at most [`crate::readout::shared::RESUME_READINGS`] readings back.
 struct OracleGate {
     /// Outputs still to suppress.
     warmup_outputs: u32,
@@ -724,6 +725,9 @@ struct OracleGate {
     last: Option<f64>,
     /// A rotation read right after "no evidence", held back until the next reading.
     held: Option<f64>,
+    /// While "no evidence": the sign of the last answer (`true`: negative) and the readings
+    /// since it.
+    answered: Option<(bool, u8)>,
 }
 
 impl OracleGate {
@@ -735,6 +739,7 @@ impl OracleGate {
             phase: 0,
             last: None,
             held: None,
+            answered: None,
         }
     }
 
@@ -744,10 +749,18 @@ impl OracleGate {
             let now = two_population_estimate(fields, twins);
             let confirmed =
                 matches!((self.held, now), (Some(h), Some(v)) if (v < 0.0) == (h < 0.0));
-            (self.last, self.held) = match now {
-                Some(v) if self.last.is_some() || confirmed => (Some(v), None),
-                Some(v) => (None, Some(v)),
-                None => (None, None),
+            let resumed = matches!((self.answered, now), (Some((negative, since)), Some(v))
+                if since < crate::readout::shared::RESUME_READINGS && (v < 0.0) == negative);
+            (self.last, self.held, self.answered) = match (now, self.last) {
+                (Some(v), Some(_)) => (Some(v), None, None),
+                (Some(v), None) if confirmed || resumed => (Some(v), None, None),
+                (Some(v), None) => (None, Some(v), None),
+                (None, Some(a)) => (None, None, Some((a < 0.0, 0))),
+                (None, None) => (
+                    None,
+                    None,
+                    self.answered.map(|(n, k)| (n, k.saturating_add(1))),
+                ),
             };
         }
         self.phase = (self.phase + 1) % self.refresh;

@@ -8,13 +8,13 @@
 //! them sees).
 //!
 //! The spike readout runs on the same scenes: its RMSE stays within a bound of the calibrated
-//! readout's (today's ratio with a margin: car 1.21, drone 1.28, hover 1.08, rotation 0.94;
+//! readout's (today's ratio with a margin: car 1.23, drone 1.29, hover 1.08, rotation 0.95;
 //! README: "Three readouts"), and on the static scenes its RMS output within the same 0.03
 //! rad/s.
 //!
 //! The bounds are what the readout reaches today with a margin (README: "Flight regimes"; on
-//! these scenes it reaches correlation 0.994 / 0.982 / 0.975 / 0.996, RMSE 5.5 / 11.6 / 13.7
-//! / 6.2 % of peak for car / drone / hover / rotation, "no evidence" while turning 2.0-4.6 %,
+//! these scenes it reaches correlation 0.994 / 0.982 / 0.975 / 0.996, RMSE 5.5 / 11.7 / 13.5
+//! / 6.2 % of peak for car / drone / hover / rotation, "no evidence" while turning 1.5-4.1 %,
 //! and RMS output 0.000 and 0.000 rad/s for the static scenes; before an answer after "no
 //! evidence" waited for a second reading 5.9 / 11.9 / 13.9 / 6.6 %; before the majority-sign
 //! region medians 6.0 / 13.4 / 13.6 / 6.5 %; before the near units 0.978 / 0.946 / 0.930 /

@@ -24,9 +24,23 @@ pub const WARMUP_US: u32 = 20_000;
 /// (10 ms), not over one period.
 pub const REFRESH_US: u32 = 4_000;
 
-/// [`OutputGate`]'s mark of a rotation it holds back (see there): a flag bit of its own, never
-/// output (bit 7, which the wire reserves as 0).
+/// Readings (of [`REFRESH_US`] each) after its last answer within which [`OutputGate`] takes
+/// an answer of that answer's sign at once, without waiting for a second reading: 12 ms at 1
+/// kHz. A brief gap in the evidence within a turn is not a new start.
+pub const RESUME_READINGS: u8 = 3;
+
+// The gate's own marks, kept in bits 2-7 of its last reading's flag byte while that says "no
+// evidence", never passed on (the outputs then carry `NO_EVIDENCE` alone).
+/// A rotation held back (its value is the reading's).
 const HELD: u8 = 1 << 7;
+/// The gate answered before this stretch of "no evidence".
+const ANSWERED: u8 = 1 << 6;
+/// That answer was negative.
+const ANSWERED_NEGATIVE: u8 = 1 << 5;
+/// Readings since that answer (bits 2-4).
+const SINCE_SHIFT: u32 = 2;
+/// See [`SINCE_SHIFT`].
+const SINCE_MAX: u8 = 7;
 
 /// Smallest TRG drive that makes a unit at rest burst (`q·tau/e >= 1`).
 pub fn min_burst_drive(kernel: &Kernel) -> Trace {
@@ -197,11 +211,12 @@ fn coverage<L: Layout>(layout: &L, g: &FieldGeometry) -> Coverage {
 ///
 /// A reading that shows a rotation right after "no evidence" is held back, output as "no
 /// evidence", until the next reading ([`REFRESH_US`] later: 4 ms at 1 kHz) shows a rotation of
-/// the same sign. Where motion starts (a hover's turn after a pause, the first decodes after a
-/// reversal), the first regions to fill decide the first reading, and a few of the paper's
-/// units timing an edge near the end of their window (where they alias) can give it either
-/// sign; background activity makes such readings too, now and then, in front of a still
-/// camera.
+/// the same sign, unless it comes within [`RESUME_READINGS`] of the gate's last answer and has
+/// that answer's sign. Where motion starts (a hover's turn after a pause, the first decodes
+/// after a reversal), the first regions to fill decide the first reading, and a few of the
+/// paper's units timing an edge near the end of their window (where they alias) can give it
+/// either sign; background activity makes such readings too, now and then, in front of a
+/// still camera.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OutputGate {
     /// Outputs still to suppress (see [`WARMUP_US`]).
@@ -260,16 +275,38 @@ impl OutputGate {
     /// [`REFRESH_US`], it stays out of the event path's code.
     #[inline(never)]
     fn read(&mut self, estimate: FieldEstimate) {
+        let (was, marks) = self.last;
+        let answering = marks & flags::NO_EVIDENCE == 0;
         self.last = match estimate {
             FieldEstimate::Rotation(v) => {
-                let (was, marks) = self.last;
-                let answering = marks & flags::NO_EVIDENCE == 0;
-                let confirmed = marks & HELD != 0 && (v < 0) == (was < I16F16::ZERO);
-                if answering || confirmed {
+                let negative = v < 0;
+                let confirmed = marks & HELD != 0 && negative == (was < I16F16::ZERO);
+                let resumed = marks & ANSWERED != 0
+                    && (marks >> SINCE_SHIFT) & SINCE_MAX < RESUME_READINGS
+                    && negative == (marks & ANSWERED_NEGATIVE != 0);
+                if answering || confirmed || resumed {
                     (I16F16::from_bits(v), 0)
                 } else {
                     (I16F16::from_bits(v), flags::NO_EVIDENCE | HELD)
                 }
+            }
+            FieldEstimate::NoEvidence if answering => {
+                let sign = if was < I16F16::ZERO {
+                    ANSWERED_NEGATIVE
+                } else {
+                    0
+                };
+                (I16F16::ZERO, flags::NO_EVIDENCE | ANSWERED | sign)
+            }
+            FieldEstimate::NoEvidence if marks & ANSWERED != 0 => {
+                let since = ((marks >> SINCE_SHIFT) & SINCE_MAX)
+                    .saturating_add(1)
+                    .min(SINCE_MAX);
+                let kept = marks & (ANSWERED | ANSWERED_NEGATIVE);
+                (
+                    I16F16::ZERO,
+                    flags::NO_EVIDENCE | kept | (since << SINCE_SHIFT),
+                )
             }
             FieldEstimate::NoEvidence => (I16F16::ZERO, flags::NO_EVIDENCE),
         };
@@ -281,7 +318,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn an_answer_after_no_evidence_waits_for_a_second_reading_of_its_sign() {
+    fn an_answer_after_no_evidence_waits_for_a_second_reading_of_its_sign_unless_it_resumes() {
         const NE: (I16F16, u8) = (I16F16::ZERO, flags::NO_EVIDENCE);
         let r = |v: f32| FieldEstimate::Rotation(I16F16::from_num(v).to_bits());
         let out = |v: f32| (I16F16::from_num(v), 0u8);
@@ -293,12 +330,33 @@ mod tests {
             (r(0.25), out(0.25)),
             // While answering, every reading is output, a change of sign too.
             (r(-0.125), out(-0.125)),
+            // After a longer gap than `RESUME_READINGS`, readings that flip sign never agree
+            // twice: no answer.
             (FieldEstimate::NoEvidence, NE),
-            // Readings that flip sign never agree twice: no answer.
+            (FieldEstimate::NoEvidence, NE),
+            (FieldEstimate::NoEvidence, NE),
+            (FieldEstimate::NoEvidence, NE),
             (r(-0.5), NE),
             (r(0.5), NE),
             (r(-0.5), NE),
             (r(-0.75), out(-0.75)),
+            // A gap of up to `RESUME_READINGS` readings: the answer's sign resumes at once, the
+            // other sign waits.
+            (FieldEstimate::NoEvidence, NE),
+            (r(-0.5), out(-0.5)),
+            (FieldEstimate::NoEvidence, NE),
+            (FieldEstimate::NoEvidence, NE),
+            (FieldEstimate::NoEvidence, NE),
+            (r(-0.5), out(-0.5)),
+            (FieldEstimate::NoEvidence, NE),
+            (r(0.5), NE),
+            (FieldEstimate::NoEvidence, NE),
+            // A longer gap is a new start.
+            (FieldEstimate::NoEvidence, NE),
+            (FieldEstimate::NoEvidence, NE),
+            (FieldEstimate::NoEvidence, NE),
+            (r(-0.5), NE),
+            (r(-0.5), out(-0.5)),
         ];
         for (k, (reading, want)) in steps.into_iter().enumerate() {
             gate.read(reading);
