@@ -711,9 +711,8 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
 
 /// [`crate::readout::shared::OutputGate`] in f64: "no evidence" for the first
 /// [`crate::readout::shared::WARMUP_US`], then the field's estimate, read every
-/// [`crate::readout::shared::REFRESH_US`] and repeated between; after "no evidence", a
-/// rotation once two readings in a row agree in sign, or at once when it has the sign of an
-/// answer at most [`crate::readout::shared::RESUME_READINGS`] readings back.
+/// [`crate::readout::shared::REFRESH_US`] and repeated between, when
+/// [`crate::readout::shared::Confirmation`] passes it.
 struct OracleGate {
     /// Outputs still to suppress.
     warmup_outputs: u32,
@@ -723,11 +722,8 @@ struct OracleGate {
     phase: u32,
     /// What the outputs say until the next reading (`None`: no evidence).
     last: Option<f64>,
-    /// A rotation read right after "no evidence", held back until the next reading.
-    held: Option<f64>,
-    /// While "no evidence": the sign of the last answer (`true`: negative) and the readings
-    /// since it.
-    answered: Option<(bool, u8)>,
+    /// Whether the readings so far make an answer (the fixed-point gate's rule).
+    confirmation: crate::readout::shared::Confirmation,
 }
 
 impl OracleGate {
@@ -738,8 +734,7 @@ impl OracleGate {
             refresh: (crate::readout::shared::REFRESH_US / period).max(1),
             phase: 0,
             last: None,
-            held: None,
-            answered: None,
+            confirmation: crate::readout::shared::Confirmation::Waiting,
         }
     }
 
@@ -747,21 +742,8 @@ impl OracleGate {
     fn output(&mut self, fields: &mut [OracleField; 2], twins: bool) -> (f64, u8) {
         if self.phase == 0 {
             let now = two_population_estimate(fields, twins);
-            let confirmed =
-                matches!((self.held, now), (Some(h), Some(v)) if (v < 0.0) == (h < 0.0));
-            let resumed = matches!((self.answered, now), (Some((negative, since)), Some(v))
-                if since < crate::readout::shared::RESUME_READINGS && (v < 0.0) == negative);
-            (self.last, self.held, self.answered) = match (now, self.last) {
-                (Some(v), Some(_)) => (Some(v), None, None),
-                (Some(v), None) if confirmed || resumed => (Some(v), None, None),
-                (Some(v), None) => (None, Some(v), None),
-                (None, Some(a)) => (None, None, Some((a < 0.0, 0))),
-                (None, None) => (
-                    None,
-                    None,
-                    self.answered.map(|(n, k)| (n, k.saturating_add(1))),
-                ),
-            };
+            let answer = self.confirmation.read(now.map(|v| v < 0.0));
+            self.last = now.filter(|_| answer);
         }
         self.phase = (self.phase + 1) % self.refresh;
         for field in fields.iter_mut() {

@@ -94,8 +94,8 @@ pub const REGIONS: usize = 4 * COL_BANDS * ROW_BANDS;
 /// m from a camera at 1.2 m; with the principal point above the centre it starts lower). So
 /// motion in the lower half and the lower row bands above only is an object's, or the
 /// ground's under translation (which the fit cannot tell from a yaw where the ground's edges
-/// suffer the aperture problem). Without the top band, people walking past 2-3 m from a camera at 1.2 m read as
-/// 0.4-0.8 rad/s turns (`--regime objects`, seeds 51 and 52).
+/// suffer the aperture problem). Without the top band, people walking past 2-3 m from a
+/// camera at 1.2 m read as 0.4-0.8 rad/s turns (`--regime objects`, seeds 51 and 52).
 pub const ABOVE_SUPPORT: u32 = 2;
 
 /// Which of the field's bands the layout's units reach (from the layout and the principal

@@ -24,23 +24,69 @@ pub const WARMUP_US: u32 = 20_000;
 /// (10 ms), not over one period.
 pub const REFRESH_US: u32 = 4_000;
 
-/// Readings (of [`REFRESH_US`] each) after its last answer within which [`OutputGate`] takes
-/// an answer of that answer's sign at once, without waiting for a second reading: 12 ms at 1
-/// kHz. A brief gap in the evidence within a turn is not a new start.
+/// Readings (of [`REFRESH_US`] each) after its last answer within which [`Confirmation`]
+/// takes an answer of that answer's sign at once, without waiting for a second reading: 12 ms
+/// at 1 kHz. A brief gap in the evidence within a turn is not a new start.
 pub const RESUME_READINGS: u8 = 3;
 
-// The gate's own marks, kept in bits 2-7 of its last reading's flag byte while that says "no
-// evidence", never passed on (the outputs then carry `NO_EVIDENCE` alone).
-/// A rotation held back (its value is the reading's).
-const HELD: u8 = 1 << 7;
-/// The gate answered before this stretch of "no evidence".
-const ANSWERED: u8 = 1 << 6;
-/// That answer was negative.
-const ANSWERED_NEGATIVE: u8 = 1 << 5;
-/// Readings since that answer (bits 2-4).
-const SINCE_SHIFT: u32 = 2;
-/// See [`SINCE_SHIFT`].
-const SINCE_MAX: u8 = 7;
+/// Whether a reading of the field that shows a rotation is output, from the readings before
+/// it (one rule for [`OutputGate`] and the f64 oracle's gate). A rotation read right after "no
+/// evidence" is held back until the next reading shows a rotation of the same sign, unless it
+/// comes within [`RESUME_READINGS`] of the last answer and has that answer's sign. Where motion
+/// starts (a hover's turn after a pause, the first decodes after a reversal), the first
+/// regions to fill decide the first reading, and a few of the paper's units timing an edge
+/// near the end of their window (where they alias) can give it either sign; background
+/// activity makes such readings too, now and then, in front of a still camera.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Confirmation {
+    /// No answer, or none recent: a rotation read now is held.
+    #[default]
+    Waiting,
+    /// A rotation of this sign (`true`: negative) was read right after "no evidence" and is
+    /// held back.
+    Held {
+        /// Its sign.
+        negative: bool,
+    },
+    /// The last reading was output, a rotation of this sign.
+    Answering {
+        /// Its sign.
+        negative: bool,
+    },
+    /// "No evidence" for `since + 1` readings after an answer of this sign.
+    Paused {
+        /// The answer's sign.
+        negative: bool,
+        /// Readings of "no evidence" since it, less one (below [`RESUME_READINGS`]).
+        since: u8,
+    },
+}
+
+impl Confirmation {
+    /// Takes one reading (`Some(negative)`: a rotation of that sign; `None`: no evidence) and
+    /// says whether it is output.
+    pub fn read(&mut self, reading: Option<bool>) -> bool {
+        *self = match (*self, reading) {
+            (Self::Answering { .. }, Some(negative)) => Self::Answering { negative },
+            (Self::Held { negative: held }, Some(negative)) if held == negative => {
+                Self::Answering { negative }
+            }
+            (Self::Paused { negative: was, .. }, Some(negative)) if was == negative => {
+                Self::Answering { negative }
+            }
+            (_, Some(negative)) => Self::Held { negative },
+            (Self::Answering { negative }, None) => Self::Paused { negative, since: 0 },
+            (Self::Paused { negative, since }, None) if since + 1 < RESUME_READINGS => {
+                Self::Paused {
+                    negative,
+                    since: since + 1,
+                }
+            }
+            (_, None) => Self::Waiting,
+        };
+        matches!(self, Self::Answering { .. })
+    }
+}
 
 /// Smallest TRG drive that makes a unit at rest burst (`q·tau/e >= 1`).
 pub fn min_burst_drive(kernel: &Kernel) -> Trace {
@@ -206,17 +252,8 @@ fn coverage<L: Layout>(layout: &L, g: &FieldGeometry) -> Coverage {
 
 /// When the field is read and what an output says: nothing during the warm-up (at least
 /// [`WARMUP_US`]), then the field's estimate, read every [`REFRESH_US`] and repeated between.
-/// A [`FieldEstimate::Rotation`] is output unflagged, a [`FieldEstimate::NoEvidence`] as 0
-/// flagged [`flags::NO_EVIDENCE`] (unknown, not zero rate).
-///
-/// A reading that shows a rotation right after "no evidence" is held back, output as "no
-/// evidence", until the next reading ([`REFRESH_US`] later: 4 ms at 1 kHz) shows a rotation of
-/// the same sign, unless it comes within [`RESUME_READINGS`] of the gate's last answer and has
-/// that answer's sign. Where motion starts (a hover's turn after a pause, the first decodes
-/// after a reversal), the first regions to fill decide the first reading, and a few of the
-/// paper's units timing an edge near the end of their window (where they alias) can give it
-/// either sign; background activity makes such readings too, now and then, in front of a
-/// still camera.
+/// A [`FieldEstimate::Rotation`] that [`Confirmation`] passes is output unflagged; anything
+/// else as 0 flagged [`flags::NO_EVIDENCE`] (unknown, not zero rate).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OutputGate {
     /// Outputs still to suppress (see [`WARMUP_US`]).
@@ -225,9 +262,10 @@ pub struct OutputGate {
     refresh: u32,
     /// Outputs since the last reading, modulo `refresh`.
     phase: u32,
-    /// The last reading: what the outputs say until the next one, or a rotation held back
-    /// (flagged `HELD`).
-    last: (I16F16, u8),
+    /// The last reading's rate, output while `confirmation` answers.
+    value: I16F16,
+    /// Whether the readings so far make an answer.
+    confirmation: Confirmation,
 }
 
 impl OutputGate {
@@ -238,7 +276,8 @@ impl OutputGate {
             warmup_outputs: warmup_us.max(WARMUP_US).div_ceil(period_us.max(1)),
             refresh: (REFRESH_US / period_us.max(1)).max(1),
             phase: 0,
-            last: (I16F16::ZERO, flags::NO_EVIDENCE),
+            value: I16F16::ZERO,
+            confirmation: Confirmation::Waiting,
         }
     }
 
@@ -264,52 +303,22 @@ impl OutputGate {
 
     /// What the outputs say until the next reading.
     fn said(&self) -> (I16F16, u8) {
-        if self.last.1 & flags::NO_EVIDENCE != 0 {
-            (I16F16::ZERO, flags::NO_EVIDENCE)
-        } else {
-            self.last
+        match self.confirmation {
+            Confirmation::Answering { .. } => (self.value, 0),
+            _ => (I16F16::ZERO, flags::NO_EVIDENCE),
         }
     }
 
-    /// Takes one reading of the field (see the type's docs). Not inlined: once every
-    /// [`REFRESH_US`], it stays out of the event path's code.
+    /// Takes one reading of the field. Not inlined: once every [`REFRESH_US`], it stays out of
+    /// the event path's code.
     #[inline(never)]
     fn read(&mut self, estimate: FieldEstimate) {
-        let (was, marks) = self.last;
-        let answering = marks & flags::NO_EVIDENCE == 0;
-        self.last = match estimate {
-            FieldEstimate::Rotation(v) => {
-                let negative = v < 0;
-                let confirmed = marks & HELD != 0 && negative == (was < I16F16::ZERO);
-                let resumed = marks & ANSWERED != 0
-                    && (marks >> SINCE_SHIFT) & SINCE_MAX < RESUME_READINGS
-                    && negative == (marks & ANSWERED_NEGATIVE != 0);
-                if answering || confirmed || resumed {
-                    (I16F16::from_bits(v), 0)
-                } else {
-                    (I16F16::from_bits(v), flags::NO_EVIDENCE | HELD)
-                }
-            }
-            FieldEstimate::NoEvidence if answering => {
-                let sign = if was < I16F16::ZERO {
-                    ANSWERED_NEGATIVE
-                } else {
-                    0
-                };
-                (I16F16::ZERO, flags::NO_EVIDENCE | ANSWERED | sign)
-            }
-            FieldEstimate::NoEvidence if marks & ANSWERED != 0 => {
-                let since = ((marks >> SINCE_SHIFT) & SINCE_MAX)
-                    .saturating_add(1)
-                    .min(SINCE_MAX);
-                let kept = marks & (ANSWERED | ANSWERED_NEGATIVE);
-                (
-                    I16F16::ZERO,
-                    flags::NO_EVIDENCE | kept | (since << SINCE_SHIFT),
-                )
-            }
-            FieldEstimate::NoEvidence => (I16F16::ZERO, flags::NO_EVIDENCE),
+        let reading = match estimate {
+            FieldEstimate::Rotation(v) => Some(I16F16::from_bits(v)),
+            FieldEstimate::NoEvidence => None,
         };
+        self.confirmation.read(reading.map(|v| v < I16F16::ZERO));
+        self.value = reading.unwrap_or(I16F16::ZERO);
     }
 }
 
