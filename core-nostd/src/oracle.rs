@@ -1620,12 +1620,34 @@ impl OracleField {
         values.last().map(|v| v.0.clamp(-20.0, 20.0))
     }
 
-    /// Intercept at `Y = 0` of one column band's weighted fit on one side, and its variance.
+    /// Intercept at `Y = 0` of one column band's weighted fit on one side, and its variance:
+    /// over both halves of the band, or the rows above the principal row alone where the
+    /// halves' own fits disagree (as `field::Field::column_intercept`).
     fn column_intercept(&self, side: usize, band: usize) -> Option<(f64, f64)> {
+        let both = self.half_fit(side, band, [true, true]);
+        match (
+            self.half_fit(side, band, [true, false]),
+            self.half_fit(side, band, [false, true]),
+        ) {
+            (Some((wa, va)), Some((wb, vb))) => {
+                let sigmas = crate::readout::field::HALVES_DISAGREE_SIGMAS as f64;
+                if (wa - wb) * (wa - wb) > sigmas * sigmas * (va + vb) {
+                    Some((wa, va))
+                } else {
+                    both
+                }
+            }
+            _ => both,
+        }
+    }
+
+    /// Intercept at `Y = 0` of one column band's weighted fit on one side over the halves in
+    /// `halves` (above, below the principal row), and its variance.
+    fn half_fit(&self, side: usize, band: usize, halves: [bool; 2]) -> Option<(f64, f64)> {
         let (mut s, mut r_sum) = (0.0, 0.0);
         let mut half = [(0.0f64, 0.0f64, 0.0f64); 2];
         let mut points = 0;
-        for v in 0..2 {
+        for (v, _) in halves.iter().enumerate().filter(|(_, &used)| used) {
             for row in 0..ROWS {
                 let Some((m, var)) = self.region_value(((side * COLS + band) * 2 + v) * ROWS + row)
                 else {

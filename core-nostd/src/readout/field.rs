@@ -35,7 +35,11 @@
 //!   instead: there the other sign's decodes are timing errors, which would pull the signed
 //!   median towards slow rates (`majority_median`).
 //! - Per column band and side: the inverse-variance weighted least-squares intercept of the
-//!   region values against `Y` (slopes with a weak prior).
+//!   region values against `Y` (slopes with a weak prior). When the fits of the band's rows
+//!   above and below the principal row alone differ by more than [`HALVES_DISAGREE_SIGMAS`]
+//!   standard deviations, the upper half's fit alone: far scenery above the horizon moves with
+//!   the rotation, while below it the ground close under a flying drone (whose flow grows
+//!   faster than linearly in `Y`) and people walking past move on their own.
 //! - Every left band's intercept is paired with every right band's (up to
 //!   [`COL_BANDS`]² pairs); the output is the inverse-variance weighted median of the pairs'
 //!   means when each side has an intercept in some band, and either `support` mirrored bands
@@ -163,6 +167,11 @@ const MAX_WEIGHT: u64 = 1 << 20;
 /// Prior information on the slopes of a column's fit (weight x Y² in Q12): a slope of 2 rad/s
 /// per unit of `Y` is one standard deviation.
 const SLOPE_PRIOR: i64 = ((WEIGHT_SCALE >> 34) << 12) as i64;
+
+/// A column band's fit uses the rows above the principal row alone when its intercept from
+/// them and its intercept from the rows below differ by more than this many standard
+/// deviations of their difference (module documentation, "The estimator").
+pub const HALVES_DISAGREE_SIGMAS: u64 = 3;
 
 /// Weight of a sample when the histograms were last renormalised (Q16 = one sample).
 const UNIT_WEIGHT: u32 = 1 << 16;
@@ -722,65 +731,117 @@ impl Field {
     /// column band, so the intercept is the yaw rate plus what stays odd in `X` (which the
     /// mirrored side cancels). The slopes have a prior ([`SLOPE_PRIOR`]) so that one row band
     /// per half still counts.
+    ///
+    /// The fit is over both halves of the band, or over the rows above the principal row alone
+    /// when each half's own fit gives an intercept and the two differ by more than
+    /// [`HALVES_DISAGREE_SIGMAS`] standard deviations. Scenery above the horizon is far: it
+    /// moves with the rotation (and pitch and roll, linear in `Y`) alone, while the rows below
+    /// it see the ground, whose flow under translation grows faster than linearly in `Y` close
+    /// to the camera, and people and cars on it: where the halves do not say the same rate,
+    /// the lower half is what is wrong.
     fn column_intercept(
         &self,
         regions: &[Option<RegionStats>; REGIONS],
         side: usize,
         band: usize,
     ) -> Option<(i64, u64)> {
+        let sums = [0, 1].map(|vside| self.half_sums(regions, side, band, vside));
+        let both = fit_intercept(&sums, [true, true]);
+        let above = fit_intercept(&sums, [true, false]);
+        let below = fit_intercept(&sums, [false, true]);
+        let (Some((wa, va)), Some((wb, vb))) = (above, below) else {
+            return both;
+        };
+        let d = (i128::from(wa) - i128::from(wb)).unsigned_abs();
+        let limit = u128::from(HALVES_DISAGREE_SIGMAS * HALVES_DISAGREE_SIGMAS)
+            * (u128::from(va) + u128::from(vb));
+        if d * d > limit {
+            above
+        } else {
+            both
+        }
+    }
+
+    /// The weighted sums of one half of a column band's fit (`vside`: 0 above the principal
+    /// row, 1 below).
+    fn half_sums(
+        &self,
+        regions: &[Option<RegionStats>; REGIONS],
+        side: usize,
+        band: usize,
+        vside: usize,
+    ) -> HalfSums {
         // Fixed point without 128-bit division (costly on a Cortex-M): weights in
-        // [0, MAX_WEIGHT], Y and r in Q12. The bounds in the comments keep every i64 in range.
-        let (mut s, mut r_sum) = (0i64, 0i64); // < 2^23, < 2^45
-        let mut half = [(0i64, 0i64, 0i64); 2]; // (Σ w Y < 2^36, Σ w Y² < 2^37, Σ w r Y < 2^46)
-        for vside in 0..2 {
-            for row in 0..ROW_BANDS {
-                let Some(st) = regions
-                    .get(region_index(side, band, vside, row))
-                    .copied()
-                    .flatten()
-                else {
-                    continue;
-                };
-                let w = (WEIGHT_SCALE / st.variance.max(1)).min(MAX_WEIGHT) as i64;
-                if w == 0 {
-                    continue;
-                }
-                let y_abs = self.geometry.row_centre_abs_q12(vside, row);
-                let y = if vside == 0 { -y_abs } else { y_abs };
-                let r = (st.median >> 4).clamp(-(1 << 21), 1 << 21);
-                s += w;
-                r_sum += w * r;
-                if let Some((sy, syy, sry)) = half.get_mut(vside) {
-                    *sy += w * y;
-                    *syy += (w * y * y) >> 12;
-                    *sry += (w * r * y) >> 12;
-                }
-            }
-        }
-        if s == 0 {
-            return None;
-        }
-        // Eliminate the slopes (Schur complement): each half takes k = Σ wY / (Σ wY² + prior)
-        // and removes k Σ wY from the intercept's information (at most all of it, by
-        // Cauchy-Schwarz) and k Σ wrY from its right-hand side.
-        let (mut info, mut rhs) = (s << 12, r_sum); // weight x Q12, weight x r in Q12
-        for &(sy, syy, sry) in &half {
-            let denom = syy.saturating_add(SLOPE_PRIOR);
-            if sy == 0 || denom <= 0 {
+        // [0, MAX_WEIGHT], Y and r in Q12. The bounds keep every i64 in range.
+        let mut sums = HalfSums::default();
+        for row in 0..ROW_BANDS {
+            let Some(st) = regions
+                .get(region_index(side, band, vside, row))
+                .copied()
+                .flatten()
+            else {
+                continue;
+            };
+            let w = (WEIGHT_SCALE / st.variance.max(1)).min(MAX_WEIGHT) as i64;
+            if w == 0 {
                 continue;
             }
-            let k = (sy << 12) / denom; // Q12
-            info -= ((i128::from(k) * i128::from(sy)) >> 12) as i64;
-            rhs -= ((i128::from(k) * i128::from(sry)) >> 12).clamp(-(1 << 62), 1 << 62) as i64;
+            let y_abs = self.geometry.row_centre_abs_q12(vside, row);
+            let y = if vside == 0 { -y_abs } else { y_abs };
+            let r = (st.median >> 4).clamp(-(1 << 21), 1 << 21);
+            sums.w += w;
+            sums.wr += w * r;
+            sums.wy += w * y;
+            sums.wyy += (w * y * y) >> 12;
+            sums.wry += (w * r * y) >> 12;
         }
-        if info <= 0 {
-            return None;
-        }
-        // omega = rhs / info (rhs in weight x Q12, info in weight x Q12), in Q12 then Q16.
-        let omega_q12 = rhs.saturating_mul(1 << 12) / info;
-        let variance = ((WEIGHT_SCALE << 12) / info.unsigned_abs()).max(1);
-        Some((omega_q12.saturating_mul(16), variance))
+        sums
     }
+}
+
+/// One half of a column band's weighted fit (weights in [0, `MAX_WEIGHT`], `Y` and `r` in
+/// Q12): `Σ w < 2^23`, `Σ w r < 2^45`, `Σ w Y < 2^36`, `Σ w Y² < 2^37` and `Σ w r Y < 2^46`
+/// (the last two in Q12).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct HalfSums {
+    w: i64,
+    wr: i64,
+    wy: i64,
+    wyy: i64,
+    wry: i64,
+}
+
+/// The intercept at `Y = 0` and its variance (Q16 rad/s, Q32) of the fit over the halves in
+/// `used` (above, below the principal row), each with its own slope; `None` without weight.
+fn fit_intercept(sums: &[HalfSums; 2], used: [bool; 2]) -> Option<(i64, u64)> {
+    let (mut s, mut r_sum) = (0i64, 0i64);
+    for (h, _) in sums.iter().zip(used).filter(|(_, u)| *u) {
+        s += h.w;
+        r_sum += h.wr;
+    }
+    if s == 0 {
+        return None;
+    }
+    // Eliminate the slopes (Schur complement): each half takes k = Σ wY / (Σ wY² + prior)
+    // and removes k Σ wY from the intercept's information (at most all of it, by
+    // Cauchy-Schwarz) and k Σ wrY from its right-hand side.
+    let (mut info, mut rhs) = (s << 12, r_sum); // weight x Q12, weight x r in Q12
+    for (h, _) in sums.iter().zip(used).filter(|(_, u)| *u) {
+        let denom = h.wyy.saturating_add(SLOPE_PRIOR);
+        if h.wy == 0 || denom <= 0 {
+            continue;
+        }
+        let k = (h.wy << 12) / denom; // Q12
+        info -= ((i128::from(k) * i128::from(h.wy)) >> 12) as i64;
+        rhs -= ((i128::from(k) * i128::from(h.wry)) >> 12).clamp(-(1 << 62), 1 << 62) as i64;
+    }
+    if info <= 0 {
+        return None;
+    }
+    // omega = rhs / info (rhs in weight x Q12, info in weight x Q12), in Q12 then Q16.
+    let omega_q12 = rhs.saturating_mul(1 << 12) / info;
+    let variance = ((WEIGHT_SCALE << 12) / info.unsigned_abs()).max(1);
+    Some((omega_q12.saturating_mul(16), variance))
 }
 
 /// |rate| (Q16 rad/s) `need` samples into bin `i`, which holds `m` (`need <= m < 2^32`),
@@ -1073,6 +1134,42 @@ mod tests {
         // The same decodes every period (about 42) do read the majority.
         let (majority, signed) = with_and_without_majority(&few, 1);
         assert_ne!(majority, signed);
+    }
+
+    /// Feeds 30 ms of decodes of the paper's units into every column band on both sides:
+    /// `above` (mrad/s, signed) in the row bands above the principal row, `below` in those
+    /// below it, two per region and period.
+    fn feed_halves(f: &mut Field, above: i64, below: i64) {
+        for _ in 0..30 {
+            for (side, band) in all_bands(|_, _| 0).map(|(s, b, _)| (s, b)) {
+                for row in 0..ROW_BANDS {
+                    for (up, rate) in [(true, above), (false, below)] {
+                        let (x, y) = pixel(side, band, up, row);
+                        for _ in 0..2 {
+                            let l2 = log2_rate(rate.unsigned_abs());
+                            f.add(Population::Fast, x, y, l2, rate > 0);
+                        }
+                    }
+                }
+            }
+            f.age();
+        }
+    }
+
+    #[test]
+    fn where_the_halves_disagree_the_rows_above_the_principal_row_decide() {
+        // Far scenery above the principal row turns at 0.3 rad/s; below it something else
+        // reads 0.9 in every band (people walking past, the ground close under a drone): the
+        // fit over both halves would put the intercept between the two.
+        let mut f = field();
+        feed_halves(&mut f, 300, 900);
+        let v = rad_s(f.estimate()).expect("a rotation");
+        assert!((v - 0.3).abs() < 0.01, "{v}");
+        // Halves that agree are fitted together.
+        let mut g = field();
+        feed_halves(&mut g, 300, 300);
+        let w = rad_s(g.estimate()).expect("a rotation");
+        assert!((w - 0.3).abs() < 0.01, "{w}");
     }
 
     #[test]
