@@ -709,6 +709,27 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
     }
 }
 
+/// The intercept at `Y = 0` and its variance of a column band's fit over the halves in
+/// `used` (above, below the principal row), from their [`OracleField::half_sums`], each half
+/// with its own slope (prior 0.25 on `Σ w Y²`); `None` without weight.
+fn oracle_fit(sums: &[[f64; 5]; 2], used: [bool; 2]) -> Option<(f64, f64)> {
+    let halves = || sums.iter().zip(used).filter(|(_, u)| *u).map(|(h, _)| h);
+    let (mut info, mut rhs) = halves().fold((0.0, 0.0), |(s, r), h| (s + h[0], r + h[1]));
+    if info <= 0.0 {
+        return None;
+    }
+    for &[_, _, sy, syy, sry] in halves() {
+        if sy != 0.0 {
+            info -= sy * sy / (syy + 0.25);
+            rhs -= sy * sry / (syy + 0.25);
+        }
+    }
+    if info <= 0.0 {
+        return None;
+    }
+    Some((rhs / info, 1.0 / info))
+}
+
 /// [`crate::readout::shared::OutputGate`] in f64: "no evidence" for the first
 /// [`crate::readout::shared::WARMUP_US`], then the field's estimate, read every
 /// [`crate::readout::shared::REFRESH_US`] and repeated between, when
@@ -1624,62 +1645,34 @@ impl OracleField {
     /// over both halves of the band, or the rows above the principal row alone where the
     /// halves' own fits disagree (as `field::Field::column_intercept`).
     fn column_intercept(&self, side: usize, band: usize) -> Option<(f64, f64)> {
-        let both = self.half_fit(side, band, [true, true]);
-        match (
-            self.half_fit(side, band, [true, false]),
-            self.half_fit(side, band, [false, true]),
-        ) {
-            (Some((wa, va)), Some((wb, vb))) => {
-                let sigmas = crate::readout::field::HALVES_DISAGREE_SIGMAS as f64;
-                if (wa - wb) * (wa - wb) > sigmas * sigmas * (va + vb) {
-                    Some((wa, va))
-                } else {
-                    both
-                }
+        let sums = [0, 1].map(|v| self.half_sums(side, band, v));
+        let above = oracle_fit(&sums, [true, false]);
+        if let (Some((wa, va)), Some((wb, vb))) = (above, oracle_fit(&sums, [false, true])) {
+            let sigmas = crate::readout::field::HALVES_DISAGREE_SIGMAS as f64;
+            if (wa - wb) * (wa - wb) > sigmas * sigmas * (va + vb) {
+                return above;
             }
-            _ => both,
         }
+        oracle_fit(&sums, [true, true])
     }
 
-    /// Intercept at `Y = 0` of one column band's weighted fit on one side over the halves in
-    /// `halves` (above, below the principal row), and its variance.
-    fn half_fit(&self, side: usize, band: usize, halves: [bool; 2]) -> Option<(f64, f64)> {
-        let (mut s, mut r_sum) = (0.0, 0.0);
-        let mut half = [(0.0f64, 0.0f64, 0.0f64); 2];
-        let mut points = 0;
-        for (v, _) in halves.iter().enumerate().filter(|(_, &used)| used) {
-            for row in 0..ROWS {
-                let Some((m, var)) = self.region_value(((side * COLS + band) * 2 + v) * ROWS + row)
-                else {
-                    continue;
-                };
-                let w = 1.0 / var;
-                let h = self.band.1.get(v).copied().unwrap_or(1.0);
-                let y = (row as f64 + 0.5) * h / self.focal * if v == 0 { -1.0 } else { 1.0 };
-                s += w;
-                r_sum += w * m;
-                if let Some(h) = half.get_mut(v) {
-                    h.0 += w * y;
-                    h.1 += w * y * y;
-                    h.2 += w * m * y;
-                }
-                points += 1;
+    /// The weighted sums `(Σ w, Σ w r, Σ w Y, Σ w Y², Σ w r Y)` of one half of a column
+    /// band's fit (`v`: 0 above the principal row, 1 below), each region's median read once.
+    fn half_sums(&self, side: usize, band: usize, v: usize) -> [f64; 5] {
+        let mut sums = [0.0; 5];
+        for row in 0..ROWS {
+            let Some((m, var)) = self.region_value(((side * COLS + band) * 2 + v) * ROWS + row)
+            else {
+                continue;
+            };
+            let w = 1.0 / var;
+            let h = self.band.1.get(v).copied().unwrap_or(1.0);
+            let y = (row as f64 + 0.5) * h / self.focal * if v == 0 { -1.0 } else { 1.0 };
+            for (sum, term) in sums.iter_mut().zip([w, w * m, w * y, w * y * y, w * m * y]) {
+                *sum += term;
             }
         }
-        if points == 0 {
-            return None;
-        }
-        let (mut info, mut rhs) = (s, r_sum);
-        for &(sy, syy, sry) in &half {
-            if sy != 0.0 {
-                info -= sy * sy / (syy + 0.25);
-                rhs -= sy * sry / (syy + 0.25);
-            }
-        }
-        if info <= 0.0 {
-            return None;
-        }
-        Some((rhs / info, 1.0 / info))
+        sums
     }
 
     /// `(median, variance of the median)` in region `i`.

@@ -746,20 +746,16 @@ impl Field {
         band: usize,
     ) -> Option<(i64, u64)> {
         let sums = [0, 1].map(|vside| self.half_sums(regions, side, band, vside));
-        let both = fit_intercept(&sums, [true, true]);
         let above = fit_intercept(&sums, [true, false]);
-        let below = fit_intercept(&sums, [false, true]);
-        let (Some((wa, va)), Some((wb, vb))) = (above, below) else {
-            return both;
-        };
-        let d = (i128::from(wa) - i128::from(wb)).unsigned_abs();
-        let limit = u128::from(HALVES_DISAGREE_SIGMAS * HALVES_DISAGREE_SIGMAS)
-            * (u128::from(va) + u128::from(vb));
-        if d * d > limit {
-            above
-        } else {
-            both
+        if let (Some((wa, va)), Some((wb, vb))) = (above, fit_intercept(&sums, [false, true])) {
+            let d = (i128::from(wa) - i128::from(wb)).unsigned_abs();
+            let limit = u128::from(HALVES_DISAGREE_SIGMAS * HALVES_DISAGREE_SIGMAS)
+                * (u128::from(va) + u128::from(vb));
+            if d * d > limit {
+                return above;
+            }
         }
+        fit_intercept(&sums, [true, true])
     }
 
     /// The weighted sums of one half of a column band's fit (`vside`: 0 above the principal
@@ -1011,19 +1007,24 @@ mod tests {
     /// Feeds 30 ms of decodes of the paper's units: in every listed column band (side, band,
     /// rate in mrad/s, signed), two per row band and period, all at the same rate.
     fn feed(f: &mut Field, bands: &[(usize, usize, i64)]) {
+        let mut halves = [(0, 0, 0, 0); 2 * COL_BANDS];
+        for (slot, &(side, band, rate)) in halves.iter_mut().zip(bands) {
+            *slot = (side, band, rate, rate);
+        }
+        feed_halves(f, &halves[..bands.len().min(halves.len())]);
+    }
+
+    /// [`feed`] with a rate (mrad/s, signed) per half of each listed column band: `(side,
+    /// band, above the principal row, below it)`.
+    fn feed_halves(f: &mut Field, bands: &[(usize, usize, i64, i64)]) {
         for _ in 0..30 {
-            for &(side, band, rate) in bands {
+            for &(side, band, above, below) in bands {
                 for row in 0..ROW_BANDS {
-                    for up in [false, true] {
+                    for (up, rate) in [(false, below), (true, above)] {
                         let (x, y) = pixel(side, band, up, row);
                         for _ in 0..2 {
-                            f.add(
-                                Population::Fast,
-                                x,
-                                y,
-                                log2_rate(rate.unsigned_abs()),
-                                rate > 0,
-                            );
+                            let l2 = log2_rate(rate.unsigned_abs());
+                            f.add(Population::Fast, x, y, l2, rate > 0);
                         }
                     }
                 }
@@ -1136,38 +1137,24 @@ mod tests {
         assert_ne!(majority, signed);
     }
 
-    /// Feeds 30 ms of decodes of the paper's units into every column band on both sides:
-    /// `above` (mrad/s, signed) in the row bands above the principal row, `below` in those
-    /// below it, two per region and period.
-    fn feed_halves(f: &mut Field, above: i64, below: i64) {
-        for _ in 0..30 {
-            for (side, band) in all_bands(|_, _| 0).map(|(s, b, _)| (s, b)) {
-                for row in 0..ROW_BANDS {
-                    for (up, rate) in [(true, above), (false, below)] {
-                        let (x, y) = pixel(side, band, up, row);
-                        for _ in 0..2 {
-                            let l2 = log2_rate(rate.unsigned_abs());
-                            f.add(Population::Fast, x, y, l2, rate > 0);
-                        }
-                    }
-                }
-            }
-            f.age();
-        }
-    }
-
     #[test]
     fn where_the_halves_disagree_the_rows_above_the_principal_row_decide() {
         // Far scenery above the principal row turns at 0.3 rad/s; below it something else
         // reads 0.9 in every band (people walking past, the ground close under a drone): the
         // fit over both halves would put the intercept between the two.
         let mut f = field();
-        feed_halves(&mut f, 300, 900);
+        feed_halves(
+            &mut f,
+            &all_bands(|_, _| 0).map(|(s, b, _)| (s, b, 300, 900)),
+        );
         let v = rad_s(f.estimate()).expect("a rotation");
         assert!((v - 0.3).abs() < 0.01, "{v}");
         // Halves that agree are fitted together.
         let mut g = field();
-        feed_halves(&mut g, 300, 300);
+        feed_halves(
+            &mut g,
+            &all_bands(|_, _| 0).map(|(s, b, _)| (s, b, 300, 300)),
+        );
         let w = rad_s(g.estimate()).expect("a rotation");
         assert!((w - 0.3).abs() < 0.01, "{w}");
     }

@@ -53,12 +53,12 @@ pub enum Confirmation {
         /// Its sign.
         negative: bool,
     },
-    /// "No evidence" for `since + 1` readings after an answer of this sign.
+    /// "No evidence" for `readings` readings after an answer of this sign.
     Paused {
         /// The answer's sign.
         negative: bool,
-        /// Readings of "no evidence" since it, less one (below [`RESUME_READINGS`]).
-        since: u8,
+        /// Readings of "no evidence" since it (1 to [`RESUME_READINGS`]).
+        readings: u8,
     },
 }
 
@@ -75,11 +75,14 @@ impl Confirmation {
                 Self::Answering { negative }
             }
             (_, Some(negative)) => Self::Held { negative },
-            (Self::Answering { negative }, None) => Self::Paused { negative, since: 0 },
-            (Self::Paused { negative, since }, None) if since + 1 < RESUME_READINGS => {
+            (Self::Answering { negative }, None) => Self::Paused {
+                negative,
+                readings: 1,
+            },
+            (Self::Paused { negative, readings }, None) if readings < RESUME_READINGS => {
                 Self::Paused {
                     negative,
-                    since: since + 1,
+                    readings: readings + 1,
                 }
             }
             (_, None) => Self::Waiting,
