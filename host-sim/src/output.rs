@@ -2,6 +2,12 @@
 //! target and renamed into place only when everything was written. A command with several
 //! outputs puts them in place together ([`commit_all`], [`StagedDir`]), after all of them were
 //! written, so that a failure leaves none of them.
+//!
+//! A target that already exists and is not a regular file (`/dev/null`, `/dev/stdout`, a named
+//! pipe: [`is_stream`]) is written in place instead: renaming a file onto it would replace the
+//! device or pipe itself (as root, `--out /dev/null` would leave a regular file at
+//! `/dev/null`), and a stream cannot be "absent" anyway. An output that is a link is followed:
+//! the file it points to is replaced, and the link stays.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -15,6 +21,8 @@ pub struct AtomicFile {
     path: PathBuf,
     tmp: PathBuf,
     w: BufWriter<File>,
+    /// Written in place ([`is_stream`]): nothing to rename or remove.
+    in_place: bool,
     committed: bool,
 }
 
@@ -24,13 +32,23 @@ impl AtomicFile {
     /// # Errors
     /// When it cannot be created.
     pub fn create(path: &Path) -> Result<Self> {
-        let tmp = temp_path(path, "");
-        let file =
-            File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+        let in_place = is_stream(path);
+        let tmp = if in_place {
+            path.to_path_buf()
+        } else {
+            temp_path(path, "")
+        };
+        let file = if in_place {
+            std::fs::OpenOptions::new().write(true).open(path)
+        } else {
+            File::create(&tmp)
+        }
+        .with_context(|| format!("cannot create {}", tmp.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
             tmp,
             w: BufWriter::with_capacity(1 << 16, file),
+            in_place,
             committed: false,
         })
     }
@@ -51,8 +69,10 @@ impl AtomicFile {
     /// When the data cannot be written or the file cannot be renamed.
     pub fn commit(mut self) -> Result<()> {
         self.finish_writing()?;
-        std::fs::rename(&self.tmp, &self.path)
-            .with_context(|| format!("cannot write {}", self.path.display()))?;
+        if !self.in_place {
+            place(&self.tmp, &self.path)
+                .with_context(|| format!("cannot write {}", self.path.display()))?;
+        }
         self.committed = true;
         Ok(())
     }
@@ -69,7 +89,7 @@ impl AtomicFile {
 
 impl Drop for AtomicFile {
     fn drop(&mut self) {
-        if !self.committed {
+        if !self.committed && !self.in_place {
             let _ = std::fs::remove_file(&self.tmp);
         }
     }
@@ -148,7 +168,7 @@ impl StagedPath {
     /// # Errors
     /// When it cannot be renamed.
     pub fn commit(mut self) -> Result<()> {
-        std::fs::rename(&self.tmp, &self.path)
+        place(&self.tmp, &self.path)
             .with_context(|| format!("cannot write {}", self.path.display()))?;
         self.committed = true;
         Ok(())
@@ -198,9 +218,10 @@ pub fn commit_all(mut outputs: Vec<Staged>) -> Result<()> {
     }
     let moves: Vec<(PathBuf, PathBuf)> = outputs
         .iter()
-        .map(|o| match o {
-            Staged::File(f) => (f.tmp.clone(), f.path.clone()),
-            Staged::Path(p) => (p.tmp.clone(), p.path.clone()),
+        .filter_map(|o| match o {
+            Staged::File(f) if f.in_place => None,
+            Staged::File(f) => Some((f.tmp.clone(), f.path.clone())),
+            Staged::Path(p) => Some((p.tmp.clone(), p.path.clone())),
         })
         .collect();
     place_together(&moves)?;
@@ -220,9 +241,9 @@ fn place_together(moves: &[(PathBuf, PathBuf)]) -> Result<()> {
         bail!("cannot write {}: it is a folder", to.display());
     }
     for (i, (from, to)) in moves.iter().enumerate() {
-        if let Err(e) = std::fs::rename(from, to) {
-            for (_, done) in &moves[..i] {
-                let _ = std::fs::remove_file(done);
+        if let Err(e) = place(from, to) {
+            for (_, done) in moves[..i].iter().filter(|(_, done)| !is_stream(done)) {
+                let _ = std::fs::remove_file(resolved(done));
             }
             return Err(e).with_context(|| format!("cannot write {}", to.display()));
         }
@@ -329,11 +350,73 @@ pub fn check_distinct(inputs: &[&Path], outputs: &[(&str, &Path)]) -> Result<()>
     Ok(())
 }
 
-/// Device and inode of an existing file.
+/// Device and inode of an existing regular file (or folder); `None` for a stream
+/// ([`is_stream`]), which any number of outputs may share.
 fn file_id(path: &Path) -> Option<(u64, u64)> {
     use std::os::unix::fs::MetadataExt;
     let m = std::fs::metadata(path).ok()?;
+    if is_stream(path) {
+        return None;
+    }
     Some((m.dev(), m.ino()))
+}
+
+/// Whether `path` is written in place rather than replaced: it exists and is neither a
+/// regular file nor a folder (a character device such as `/dev/null`, a named pipe, a
+/// socket), or it names an open descriptor (`/dev/stdout`, `/dev/fd/N`, `/proc/self/fd/N`:
+/// what the shell redirected it to is the output, whatever that is).
+#[must_use]
+pub fn is_stream(path: &Path) -> bool {
+    let special = std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir());
+    special || names_a_descriptor(path)
+}
+
+/// Whether `path` or a link on the way from it lies under `/proc` or `/dev/fd`.
+fn names_a_descriptor(path: &Path) -> bool {
+    let mut p = path.to_path_buf();
+    for _ in 0..8 {
+        if p.starts_with("/proc") || p.starts_with("/dev/fd") {
+            return true;
+        }
+        match std::fs::read_link(&p) {
+            Ok(next) => p = p.parent().unwrap_or(Path::new("/")).join(next),
+            Err(_) => return false,
+        }
+    }
+    false
+}
+
+/// The file an output replaces: `path` with its links followed (so that a link to an output
+/// stays a link, to the new file), or `path` itself when it does not exist yet.
+fn resolved(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// The folder for temporary files of the output `path`: the folder of the file it replaces
+/// (so that the rename stays on one file system), or the system's temporary folder for a
+/// stream (whose folder, `/dev`, is no place for files).
+#[must_use]
+pub fn scratch_dir(path: &Path) -> PathBuf {
+    if is_stream(path) {
+        return std::env::temp_dir();
+    }
+    match resolved(path).parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Moves the finished temporary file `from` to `to`: a rename onto the file `to` names, or for
+/// a stream a copy into it (and `from` removed).
+fn place(from: &Path, to: &Path) -> std::io::Result<()> {
+    if is_stream(to) {
+        let mut src = File::open(from)?;
+        let mut dst = std::fs::OpenOptions::new().write(true).open(to)?;
+        std::io::copy(&mut src, &mut dst)?;
+        std::fs::remove_file(from)
+    } else {
+        std::fs::rename(from, resolved(to))
+    }
 }
 
 fn temp_path(path: &Path, suffix: &str) -> PathBuf {
@@ -341,5 +424,5 @@ fn temp_path(path: &Path, suffix: &str) -> PathBuf {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
-    path.with_file_name(format!(".{name}.partial-{}{suffix}", std::process::id()))
+    scratch_dir(path).join(format!(".{name}.partial-{}{suffix}", std::process::id()))
 }

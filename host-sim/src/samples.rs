@@ -9,7 +9,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 
-use crate::output::AtomicFile;
+use crate::output::{scratch_dir, AtomicFile};
 
 /// Points kept for a plot: beyond this, every other point is dropped and the step doubles, so
 /// a plot of any length costs at most this many points (16 MiB).
@@ -232,12 +232,10 @@ impl Samples {
     }
 }
 
-/// An anonymous temporary file in the output's folder (removed by the system when closed).
+/// An anonymous temporary file in the output's scratch folder ([`scratch_dir`]; removed by the
+/// system when closed).
 fn tempfile_beside(path: &Path) -> Result<File> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    let dir = scratch_dir(path);
     let name = dir.join(format!(".spill-{}", std::process::id()));
     let f = std::fs::OpenOptions::new()
         .read(true)

@@ -413,6 +413,73 @@ fn a_fifo_is_read_once_like_a_file() {
     }
 }
 
+/// Drains the named pipe `fifo` on a thread; the bytes read arrive on the channel (nothing does
+/// if no one ever writes into the pipe: wait with a timeout).
+fn drain(fifo: &Path) -> std::sync::mpsc::Receiver<Vec<u8>> {
+    let fifo = fifo.to_path_buf();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || tx.send(std::fs::read(&fifo).unwrap()));
+    rx
+}
+
+/// An output that is a pipe or a device (`--out /dev/null`, `--out /dev/stdout`, a named pipe)
+/// is written into, never replaced: renaming a temporary file onto it, as regular outputs are
+/// put in place, would turn `/dev/null` into a regular file when run as root (found so: every
+/// later `cargo` run on that machine read that file as its empty input and failed).
+#[test]
+fn an_output_that_is_a_pipe_stays_a_pipe() {
+    use std::os::unix::fs::FileTypeExt;
+    let d = tmp();
+    let input = d.path().join("rec.csv");
+    edge_csv(&input);
+    let g = geometry();
+    let file = d.path().join("file.csv");
+    let file_png = d.path().join("file.png");
+    assert_ok(&run(args![
+        "run", input, "--out", file, "--plot", file_png, g[0], g[1], g[2], g[3], g[4], g[5]
+    ]));
+    let fifo = d.path().join("out.csv");
+    let fifo_png = d.path().join("out.png");
+    for p in [&fifo, &fifo_png] {
+        assert!(Command::new("mkfifo").arg(p).status().unwrap().success());
+    }
+    let (csv, png) = (drain(&fifo), drain(&fifo_png));
+    let o = run(args![
+        "run", input, "--out", fifo, "--plot", fifo_png, g[0], g[1], g[2], g[3], g[4], g[5]
+    ]);
+    assert_ok(&o);
+    let [csv, png] = [csv, png].map(|rx| {
+        rx.recv_timeout(TIMEOUT)
+            .expect("nothing was written into the pipe")
+    });
+    assert_eq!(
+        csv,
+        std::fs::read(&file).unwrap(),
+        "the CSV through the pipe"
+    );
+    assert!(png.starts_with(b"\x89PNG"), "the plot through the pipe");
+    for p in [&fifo, &fifo_png] {
+        let t = std::fs::symlink_metadata(p).unwrap().file_type();
+        assert!(t.is_fifo(), "{} was replaced", p.display());
+    }
+    assert!(leftovers(d.path()).is_empty(), "{:?}", leftovers(d.path()));
+    // Two outputs may share a stream (both to /dev/null), not a file.
+    assert_ok(&run(args![
+        "run",
+        input,
+        "--out",
+        "/dev/null",
+        "--plot",
+        "/dev/null",
+        g[0],
+        g[1],
+        g[2],
+        g[3],
+        g[4],
+        g[5]
+    ]));
+}
+
 #[test]
 fn convert_to_evt3_refuses_a_gap_of_ages() {
     let d = tmp();

@@ -76,6 +76,7 @@ fn print_help() {
 
 /// Installs missing Debian packages when running as root; otherwise prints the exact command.
 pub fn setup() -> Result<()> {
+    check_dev_null()?;
     let missing: Vec<&str> = APT_PACKAGES
         .iter()
         .copied()
@@ -95,6 +96,27 @@ pub fn setup() -> Result<()> {
     install.args(["install", "-y", "-qq"]).args(&missing);
     install.env("DEBIAN_FRONTEND", "noninteractive");
     run(&format!("apt-get install {list}"), install)
+}
+
+/// `/dev/null` must be the null device: cargo hands it to rustc as the empty source of its
+/// target probe. A regular file there (left by a program that renamed an output onto
+/// `/dev/null` as root) holds whatever was written to it since, and every build then fails
+/// with "failed to run `rustc` to learn about target-specific information". Recreated when
+/// root, else the exact command.
+fn check_dev_null() -> Result<()> {
+    use std::os::unix::fs::FileTypeExt;
+    const REPAIR: &str = "rm -f /dev/null && mknod -m 666 /dev/null c 1 3";
+    let is_device = std::fs::metadata("/dev/null").is_ok_and(|m| m.file_type().is_char_device());
+    if is_device {
+        return Ok(());
+    }
+    if !is_root() {
+        bail!("/dev/null is not the null device; recreate it with:\n  sudo sh -c '{REPAIR}'");
+    }
+    eprintln!("xtask: /dev/null is not the null device (a regular file is there): recreating it");
+    let mut c = Command::new("sh");
+    c.args(["-c", REPAIR]);
+    run("recreate /dev/null", c)
 }
 
 fn deb_installed(pkg: &str) -> bool {
