@@ -6,7 +6,8 @@
 //! readout's RMSE is printed (0.95 / 1.12 / 1.11; 0.95 / 1.07 / 1.25 before answers after "no
 //! evidence" waited for a second reading; 0.94 / 1.09 / 1.19 before the majority-sign region
 //! medians; 0.96 / 1.17 / 1.33 before the near units: README, "Three readouts"). About
-//! 2 min in release: the f64 networks compute every spike of the whole sensor.
+//! 4 min of CPU in release (the f64 networks compute every spike of the whole sensor), spread
+//! over threads: every sequence and every pipeline on its own.
 
 use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
@@ -29,44 +30,73 @@ fn rmse_against(samples: &[(f64, f64, u8)], gt: &[formats::GtSample]) -> f64 {
     rmse(&e, &g)
 }
 
+/// What one sequence gives: RMSE of the calibrated and of the spike readout (rad/s), the spike
+/// readout's number of decodes, and the fixed vs f64 correlation of the spike readout.
+struct Measured {
+    rmse_cal: f64,
+    rmse_spk: f64,
+    outputs: u64,
+    fixed_vs_float: f64,
+}
+
+/// Runs the three pipelines on the sequence in `seq` (each on its own thread: the f64 network
+/// of dev03 alone takes about a minute).
+fn measure(seq: &std::path::Path) -> Measured {
+    let rec = formats::read(seq.join("events.raw"), None).expect("read events");
+    let gt = formats::read_ground_truth(seq.join("gt.csv")).expect("gt");
+    let spikes = RunOptions {
+        readout: ReadoutKind::Spikes,
+        ..RunOptions::default()
+    };
+    let float = RunOptions {
+        model: Model::Float,
+        ..spikes.clone()
+    };
+    let [calibrated, fixed, float] = std::thread::scope(|s| {
+        [RunOptions::default(), spikes, float]
+            .map(|o| {
+                let rec = &rec;
+                s.spawn(move || run_pipeline(&o, rec).expect("run"))
+            })
+            .map(|h| h.join().expect("a run panicked"))
+    });
+    let (a, b): (Vec<f64>, Vec<f64>) = fixed
+        .samples
+        .iter()
+        .zip(&float.samples)
+        .map(|(x, y)| (x.1, y.1))
+        .unzip();
+    Measured {
+        rmse_cal: rmse_against(&calibrated.samples, &gt),
+        rmse_spk: rmse_against(&fixed.samples, &gt),
+        outputs: fixed.outputs,
+        fixed_vs_float: pearson(&a, &b),
+    }
+}
+
 #[test]
 fn spike_readout_on_every_synthetic_sequence() {
     let Some(seqs) = synthetic_sequences() else {
         return;
     };
-    for (name, seq) in seqs {
-        let rec = formats::read(seq.join("events.raw"), None).expect("read events");
-        let gt = formats::read_ground_truth(seq.join("gt.csv")).expect("gt");
-        let spikes = RunOptions {
-            readout: ReadoutKind::Spikes,
-            ..RunOptions::default()
-        };
-        let calibrated = run_pipeline(&RunOptions::default(), &rec).expect("run calibrated");
-        let fixed = run_pipeline(&spikes, &rec).expect("run spikes");
-        let float = run_pipeline(
-            &RunOptions {
-                model: Model::Float,
-                ..spikes.clone()
-            },
-            &rec,
-        )
-        .expect("run spikes, f64");
-        let (rmse_cal, rmse_spk) = (
-            rmse_against(&calibrated.samples, &gt),
-            rmse_against(&fixed.samples, &gt),
-        );
-        let (a, b): (Vec<f64>, Vec<f64>) = fixed
-            .samples
+    let measured: Vec<(String, Measured)> = std::thread::scope(|s| {
+        let runs: Vec<_> = seqs
             .iter()
-            .zip(&float.samples)
-            .map(|(x, y)| (x.1, y.1))
-            .unzip();
-        let fixed_vs_float = pearson(&a, &b);
+            .map(|(name, seq)| (name.clone(), s.spawn(move || measure(seq))))
+            .collect();
+        runs.into_iter()
+            .map(|(name, h)| (name, h.join().expect("a sequence panicked")))
+            .collect()
+    });
+    for (name, m) in measured {
         eprintln!(
-            "{name}: RMSE calibrated {rmse_cal:.4} rad/s, spikes {rmse_spk:.4} rad/s \
-             (ratio {:.2}; {} decodes), fixed vs f64 correlation {fixed_vs_float:.4}",
-            rmse_spk / rmse_cal,
-            fixed.outputs
+            "{name}: RMSE calibrated {:.4} rad/s, spikes {:.4} rad/s (ratio {:.2}; {} decodes), \
+             fixed vs f64 correlation {:.4}",
+            m.rmse_cal,
+            m.rmse_spk,
+            m.rmse_spk / m.rmse_cal,
+            m.outputs,
+            m.fixed_vs_float
         );
         let today = [("dev01", 0.0881), ("dev02", 0.1643), ("dev03", 0.0140)]
             .iter()
@@ -74,12 +104,14 @@ fn spike_readout_on_every_synthetic_sequence() {
             .map(|(_, rmse)| *rmse)
             .expect("a known development sequence");
         assert!(
-            rmse_spk <= 1.05 * today,
-            "{name}: spike readout RMSE {rmse_spk:.4} rad/s, {today:.4} before"
+            m.rmse_spk <= 1.05 * today,
+            "{name}: spike readout RMSE {:.4} rad/s, {today:.4} before",
+            m.rmse_spk
         );
         assert!(
-            fixed_vs_float >= 0.99,
-            "{name}: fixed vs f64 correlation {fixed_vs_float:.4}"
+            m.fixed_vs_float >= 0.99,
+            "{name}: fixed vs f64 correlation {:.4}",
+            m.fixed_vs_float
         );
     }
 }

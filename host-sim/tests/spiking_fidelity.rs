@@ -3,8 +3,9 @@
 //! the shared recordings: the fixed-point core's total spike count within 0.3 % of the
 //! oracle's, and its normalized output correlating at least 0.999 with the oracle's (the paper's readout, divided by its maximum: the correlation
 //! does not depend on that scale). Reads `../shared/data` (skips with a notice when it is absent,
-//! fails when it is absent and `CI` is set). About a minute in release mode (the f64 oracle
-//! dominates).
+//! fails when it is absent and `CI` is set). About 4 min of CPU in release mode, mostly the f64
+//! oracle: it runs once per recording and kind of unit, the fixed-point networks beside it on
+//! their own threads.
 //!
 //! Both models see the same events on the same clock (µs from the first event); spikes are
 //! counted up to the last event, and both readouts integrate from the first output time on.
@@ -138,9 +139,10 @@ fn oracle(layout: Dense, events: &[Event], params: OracleParams) -> Outcome {
     Outcome { spikes, samples }
 }
 
-/// Runs both models of the units of `kernel` on one recording; returns (fixed spikes, oracle
-/// spikes, correlation).
-fn compare(path: &std::path::Path, pooled: bool, kernel: &Kernel) -> (u64, u64, f64) {
+/// Runs the units of `kernel` on one recording: the oracle once, and the fixed-point network
+/// once per entry of `pooled` (each on its own thread, beside the oracle); returns per entry
+/// (fixed spikes, oracle spikes, correlation).
+fn compare(path: &std::path::Path, pooled: &[bool], kernel: &Kernel) -> Vec<(u64, u64, f64)> {
     let rec = formats::read(path, None).expect("read recording");
     let (w, h) = match (rec.width, rec.height) {
         (Some(w), Some(h)) => (w, h),
@@ -148,24 +150,48 @@ fn compare(path: &std::path::Path, pooled: bool, kernel: &Kernel) -> (u64, u64, 
     };
     let layout = Dense::new(w, h, 2).expect("layout");
     let events = relative(&rec.events);
-    let f = fixed(layout, &events, pooled, kernel);
-    let o = oracle(layout, &events, OracleParams::from(kernel.params()));
-    let n = f.samples.len().min(o.samples.len());
-    assert!(n > 50, "{}: only {n} samples", path.display());
-    let corr = pearson(&f.samples[..n], &o.samples[..n]);
-    (f.spikes, o.spikes, corr)
+    let (o, fs) = std::thread::scope(|s| {
+        let fs: Vec<_> = pooled
+            .iter()
+            .map(|&p| {
+                let events = &events;
+                s.spawn(move || fixed(layout, events, p, kernel))
+            })
+            .collect();
+        let o = oracle(layout, &events, OracleParams::from(kernel.params()));
+        let fs: Vec<Outcome> = fs
+            .into_iter()
+            .map(|h| h.join().expect("fixed network panicked"))
+            .collect();
+        (o, fs)
+    });
+    fs.iter()
+        .map(|f| {
+            let n = f.samples.len().min(o.samples.len());
+            assert!(n > 50, "{}: only {n} samples", path.display());
+            (
+                f.spikes,
+                o.spikes,
+                pearson(&f.samples[..n], &o.samples[..n]),
+            )
+        })
+        .collect()
 }
 
+/// The paper's units, in a dense array and in a unit pool.
 fn check(name: &str, path: &std::path::Path) {
-    for pooled in [false, true] {
-        let what = if pooled { "pooled" } else { "dense" };
-        check_one(name, path, pooled, &Kernel::DEFAULT, what);
-    }
+    check_variants(
+        name,
+        path,
+        &[(false, "dense"), (true, "pooled")],
+        &Kernel::DEFAULT,
+    );
 }
 
-fn check_one(name: &str, path: &std::path::Path, pooled: bool, kernel: &Kernel, what: &str) {
-    {
-        let (nf, no, corr) = compare(path, pooled, kernel);
+/// The bounds for each `(pooled, label)` variant of the units of `kernel` on one recording.
+fn check_variants(name: &str, path: &std::path::Path, variants: &[(bool, &str)], kernel: &Kernel) {
+    let pooled: Vec<bool> = variants.iter().map(|v| v.0).collect();
+    for (&(_, what), (nf, no, corr)) in variants.iter().zip(compare(path, &pooled, kernel)) {
         let rel = nf as f64 / no as f64 - 1.0;
         eprintln!(
             "{name} ({what}): spikes fixed {nf} vs oracle {no} ({:+.4} %), normalized output correlation {corr:.6}",
@@ -198,12 +224,11 @@ fn slow_units_spike_counts_follow_the_oracle_on_the_synthetic_sequences() {
         return;
     };
     for (name, seq) in seqs {
-        check_one(
+        check_variants(
             &name,
             &seq.join("events.raw"),
-            false,
+            &[(false, "slow units")],
             &Kernel::SLOW,
-            "slow units",
         );
     }
 }
