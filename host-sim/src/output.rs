@@ -6,7 +6,7 @@
 //! A target that already exists and is not a regular file (`/dev/null`, `/dev/stdout`, a named
 //! pipe: [`is_stream`]) is written in place instead: renaming a file onto it would replace the
 //! device or pipe itself (as root, `--out /dev/null` would leave a regular file at
-//! `/dev/null`), and a stream cannot be "absent" anyway. An output that is a link is followed:
+//! `/dev/null`), and a stream cannot be "absent" anyway. `-` names standard output. An output that is a link is followed:
 //! the file it points to is replaced, and the link stays.
 
 use std::fs::File;
@@ -32,6 +32,7 @@ impl AtomicFile {
     /// # Errors
     /// When it cannot be created.
     pub fn create(path: &Path) -> Result<Self> {
+        let path = &output_path(path);
         let in_place = is_stream(path);
         let tmp = if in_place {
             path.to_path_buf()
@@ -144,9 +145,10 @@ impl StagedPath {
     /// the format by extension); nothing is created.
     #[must_use]
     pub fn new(path: &Path, suffix: &str) -> Self {
+        let path = output_path(path);
         Self {
-            path: path.to_path_buf(),
-            tmp: temp_path(path, suffix),
+            tmp: temp_path(&path, suffix),
+            path,
             committed: false,
         }
     }
@@ -361,6 +363,16 @@ fn file_id(path: &Path) -> Option<(u64, u64)> {
     Some((m.dev(), m.ino()))
 }
 
+/// The file an output named `path` goes to: `-` is standard output (`/dev/stdout`).
+#[must_use]
+pub fn output_path(path: &Path) -> PathBuf {
+    if path == Path::new("-") {
+        PathBuf::from("/dev/stdout")
+    } else {
+        path.to_path_buf()
+    }
+}
+
 /// Whether `path` is written in place rather than replaced: it exists and is neither a
 /// regular file nor a folder (a character device such as `/dev/null`, a named pipe, a
 /// socket), or it names an open descriptor (`/dev/stdout`, `/dev/fd/N`, `/proc/self/fd/N`:
@@ -397,6 +409,7 @@ fn resolved(path: &Path) -> PathBuf {
 /// stream (whose folder, `/dev`, is no place for files).
 #[must_use]
 pub fn scratch_dir(path: &Path) -> PathBuf {
+    let path = &output_path(path);
     if is_stream(path) {
         return std::env::temp_dir();
     }

@@ -478,6 +478,30 @@ fn an_output_that_is_a_pipe_stays_a_pipe() {
         g[4],
         g[5]
     ]));
+    // The CSV on standard output (`/dev/stdout` or `-`): exactly the file's bytes, and nothing
+    // else there.
+    for stdout in ["/dev/stdout", "-"] {
+        let o = run(args![
+            "run", input, "--out", stdout, g[0], g[1], g[2], g[3], g[4], g[5]
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(
+            o.stdout,
+            std::fs::read(&file).unwrap(),
+            "the CSV on {stdout}"
+        );
+    }
+    // A link to an output stays a link, to the new file.
+    let real = d.path().join("real.csv");
+    let link = d.path().join("link.csv");
+    std::fs::write(&real, "old").unwrap();
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    assert_ok(&run(args![
+        "run", input, "--out", link, g[0], g[1], g[2], g[3], g[4], g[5]
+    ]));
+    assert!(std::fs::symlink_metadata(&link).unwrap().is_symlink());
+    assert_eq!(std::fs::read(&real).unwrap(), std::fs::read(&file).unwrap());
+    assert!(leftovers(d.path()).is_empty(), "{:?}", leftovers(d.path()));
 }
 
 #[test]

@@ -20,7 +20,7 @@ pub struct Args {
     /// How the firmware should run it: the flags of `host-sim run`.
     #[command(flatten)]
     pub run: RunFlags,
-    /// Output AER stream.
+    /// Output AER stream (`-`: standard output).
     #[arg(long)]
     pub out: PathBuf,
     /// Also write the arrival schedule (when each frame can be sent, for a paced replay;

@@ -41,7 +41,7 @@ pub struct Args {
     /// Output format.
     #[arg(long, value_enum)]
     pub to: To,
-    /// Output file.
+    /// Output file (`-`: standard output).
     #[arg(long)]
     pub out: PathBuf,
     /// Input format, overriding detection.

@@ -18,7 +18,7 @@ pub struct Args {
     /// How to run it.
     #[command(flatten)]
     pub run: RunFlags,
-    /// Output CSV.
+    /// Output CSV (`-`: standard output).
     #[arg(long)]
     pub out: PathBuf,
     /// Also plot the output against time.

@@ -23,7 +23,7 @@ pub struct Args {
     /// Model to sweep.
     #[arg(long, value_enum, default_value_t = Model::Fixed)]
     pub model: Model,
-    /// Output CSV (`dt_ms,spikes,first_spike_ms`).
+    /// Output CSV (`dt_ms,spikes,first_spike_ms`; `-`: standard output).
     #[arg(long)]
     pub out: PathBuf,
     /// Also draw spike count and first-spike delay of both models against the time difference.
