@@ -1,6 +1,6 @@
 //! `cargo xtask fuzz [--seconds N] [TARGET ...]`: the libFuzzer targets (cargo-fuzz, nightly)
 //! of the core (`core-nostd/fuzz`) and of the host tool (`host-sim/fuzz`), each run for N
-//! seconds (default 10: the smoke run of `cargo xtask test`; use e.g. `--seconds 3600` for a
+//! seconds (default 5: the smoke run of `cargo xtask test`; use e.g. `--seconds 3600` for a
 //! long run). Prints the executions each target reached. Installs cargo-fuzz when missing;
 //! needs the nightly toolchain (`rustup toolchain install nightly` where it is not there).
 
@@ -81,7 +81,7 @@ fn ensure_tools() -> Result<()> {
 /// Runs the fuzz targets (all when `args` names none) for `seconds` each.
 pub fn fuzz(args: &[String]) -> Result<()> {
     let all = targets()?;
-    let mut seconds = 10u32;
+    let mut seconds = 5u32;
     let mut chosen: Vec<&Target> = Vec::new();
     let mut it = args.iter();
     while let Some(a) = it.next() {

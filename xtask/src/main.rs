@@ -70,7 +70,7 @@ fn print_help() {
          flash [--board stm32f405|stm32h743]   build and run on the board through probe-rs (defmt over RTT)\n  \
          qemu INPUT --out yaw.csv [options]  run a recording through the emulated firmware\n  \
          firmware-test   only the firmware part of `test` (every board, QEMU runs)\n  \
-         fuzz [--seconds N] [TARGET..]      the libFuzzer targets (nightly), N s each (10)"
+         fuzz [--seconds N] [TARGET..]      the libFuzzer targets (nightly), N s each (5)"
     );
 }
 
