@@ -504,6 +504,43 @@ fn an_output_that_is_a_pipe_stays_a_pipe() {
     assert!(leftovers(d.path()).is_empty(), "{:?}", leftovers(d.path()));
 }
 
+/// `-` as the input is standard input: the same output as from the file (and `-` as the output
+/// is standard output).
+#[test]
+fn a_dash_reads_standard_input() {
+    let d = tmp();
+    let input = d.path().join("rec.csv");
+    edge_csv(&input);
+    let g = geometry();
+    let from_file = d.path().join("file.csv");
+    assert_ok(&run(args![
+        "run", input, "--out", from_file, g[0], g[1], g[2], g[3], g[4], g[5]
+    ]));
+    for (cmd, expected) in [("run", &from_file), ("convert", &input)] {
+        let mut c = Command::new(BIN);
+        c.arg(cmd).arg("-");
+        if cmd == "run" {
+            c.args(["--out", "-"]).args(g);
+        } else {
+            c.args(["--to", "csv", "--out", "-"]);
+        }
+        let o = c
+            .stdin(std::fs::File::open(&input).unwrap())
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{cmd}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert_eq!(
+            o.stdout,
+            std::fs::read(expected).unwrap(),
+            "{cmd} from stdin"
+        );
+    }
+}
+
 #[test]
 fn convert_to_evt3_refuses_a_gap_of_ages() {
     let d = tmp();

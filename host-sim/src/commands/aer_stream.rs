@@ -15,7 +15,8 @@ use crate::pipeline::open_recording;
 /// Arguments of `host-sim aer-stream`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Input recording (any format `host-sim convert` reads).
+    /// Input recording (any format `host-sim convert` reads; `-`: standard input).
+    #[arg(value_parser = super::input_path)]
     pub input: PathBuf,
     /// How the firmware should run it: the flags of `host-sim run`.
     #[command(flatten)]

@@ -36,7 +36,8 @@ pub enum To {
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Input recording (CSV, Event Camera Dataset text, Prophesee .raw EVT 2.0/2.1/3.0, AEDAT 4.0,
-    /// MVSEC HDF5); the format is detected from the content.
+    /// MVSEC HDF5; `-`: standard input); the format is detected from the content.
+    #[arg(value_parser = super::input_path)]
     pub input: PathBuf,
     /// Output format.
     #[arg(long, value_enum)]

@@ -13,7 +13,8 @@ use crate::timeline::{RESTART, RESTART_BACK_US, RESTART_GAP_US};
 /// Arguments of `host-sim run`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Input recording (any format `host-sim convert` reads).
+    /// Input recording (any format `host-sim convert` reads; `-`: standard input).
+    #[arg(value_parser = super::input_path)]
     pub input: PathBuf,
     /// How to run it.
     #[command(flatten)]
