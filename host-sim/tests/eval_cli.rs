@@ -138,6 +138,16 @@ fn eval_prints_the_figures_and_plots() {
     // The simulated gyro: 0.01 rad/s bias.
     let gyro_bias = v["gyro"]["mean_error_rad_s"].as_f64().unwrap();
     assert!((gyro_bias.abs() - 0.01).abs() < 0.003, "{gyro_bias}");
+    // The estimate from standard input (`--yaw -`): the same report.
+    let piped = run_ok(
+        host_sim()
+            .args(["eval", "--json", "--yaw", "-", "--gt"])
+            .arg(seq.join("gt.csv"))
+            .arg("--imu")
+            .arg(seq.join("imu.txt"))
+            .stdin(std::fs::File::open(&yaw).unwrap()),
+    );
+    assert_eq!(piped, json);
 }
 
 #[test]

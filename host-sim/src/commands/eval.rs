@@ -17,7 +17,8 @@ pub struct Args {
     /// ignored. RMSE, correlation, ARRE and heading use the values as they are, flagged or not;
     /// with flags, the report adds the share flagged "no evidence" (overall and while
     /// |gt| >= 0.05 rad/s) and the RMS output with those samples as 0 (a static camera's figure).
-    #[arg(long)]
+    /// `-`: standard input (`host-sim run REC --out - | host-sim eval --yaw - --gt ...`).
+    #[arg(long, value_parser = super::input_path)]
     pub yaw: PathBuf,
     /// Ground truth: `gt.csv` (`t_s,...,wy,...`), any ground-truth file the readers know (ECD
     /// `groundtruth.txt`, MVSEC `*_gt.hdf5`), or a CSV with `t_s,yaw_rate` columns.
