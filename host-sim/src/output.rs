@@ -40,7 +40,7 @@ impl AtomicFile {
             temp_path(path, "")
         };
         let file = if in_place {
-            std::fs::OpenOptions::new().write(true).open(path)
+            std::fs::OpenOptions::new().append(true).open(path)
         } else {
             File::create(&tmp)
         }
@@ -373,7 +373,8 @@ pub fn output_path(path: &Path) -> PathBuf {
     }
 }
 
-/// Whether `path` is written in place rather than replaced: it exists and is neither a
+/// Whether `path` is written in place rather than replaced (opened to append: standard output
+/// redirected with `>>` keeps what it holds): it exists and is neither a
 /// regular file nor a folder (a character device such as `/dev/null`, a named pipe, a
 /// socket), or it names an open descriptor (`/dev/stdout`, `/dev/fd/N`, `/proc/self/fd/N`:
 /// what the shell redirected it to is the output, whatever that is).
@@ -424,7 +425,7 @@ pub fn scratch_dir(path: &Path) -> PathBuf {
 fn place(from: &Path, to: &Path) -> std::io::Result<()> {
     if is_stream(to) {
         let mut src = File::open(from)?;
-        let mut dst = std::fs::OpenOptions::new().write(true).open(to)?;
+        let mut dst = std::fs::OpenOptions::new().append(true).open(to)?;
         std::io::copy(&mut src, &mut dst)?;
         std::fs::remove_file(from)
     } else {

@@ -491,6 +491,28 @@ fn an_output_that_is_a_pipe_stays_a_pipe() {
             "the CSV on {stdout}"
         );
     }
+    // Standard output appending to a file (`>> log`): what the file held stays.
+    let log = d.path().join("log.txt");
+    std::fs::write(&log, "kept\n").unwrap();
+    let o = Command::new(BIN)
+        .args([
+            "run".as_ref(),
+            input.as_os_str(),
+            "--out".as_ref(),
+            "-".as_ref(),
+        ])
+        .args(g)
+        .stdout(std::fs::OpenOptions::new().append(true).open(&log).unwrap())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut expected = b"kept\n".to_vec();
+    expected.extend(std::fs::read(&file).unwrap());
+    assert_eq!(
+        std::fs::read(&log).unwrap(),
+        expected,
+        "appended to stdout's file"
+    );
     // A link to an output stays a link, to the new file.
     let real = d.path().join("real.csv");
     let link = d.path().join("link.csv");
