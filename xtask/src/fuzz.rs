@@ -37,6 +37,12 @@ fn targets() -> Result<Vec<Target>> {
     Ok(all)
 }
 
+/// One target folder for both fuzz crates: what they share (libFuzzer, built from C++ by
+/// `libfuzzer-sys`, and the crates they both use) is built once.
+fn fuzz_target_dir() -> std::path::PathBuf {
+    root().join("target").join("fuzz")
+}
+
 /// `cargo` of the nightly toolchain, whatever toolchain runs this xtask.
 fn nightly_cargo() -> Command {
     let mut c = Command::new("rustup");
@@ -109,7 +115,8 @@ pub fn fuzz(args: &[String]) -> Result<()> {
             continue;
         }
         let mut c = nightly_cargo();
-        c.args(["fuzz", "build", "--fuzz-dir", dir, "-O"]);
+        c.args(["fuzz", "build", "--fuzz-dir", dir, "-O", "--target-dir"])
+            .arg(fuzz_target_dir());
         run(
             &format!("cargo fuzz build {dir} (nightly, libFuzzer + ASan)"),
             c,
@@ -118,7 +125,9 @@ pub fn fuzz(args: &[String]) -> Result<()> {
     for t in &chosen {
         let name = &t.name;
         let mut c = nightly_cargo();
-        c.args(["fuzz", "run", "--fuzz-dir", t.dir, "-O", name, "--"])
+        c.args(["fuzz", "run", "--fuzz-dir", t.dir, "-O", "--target-dir"])
+            .arg(fuzz_target_dir())
+            .args([name.as_str(), "--"])
             .arg(format!("-max_total_time={seconds}"))
             .arg("-rss_limit_mb=2048");
         eprintln!("xtask: fuzz {name} for {seconds} s");
