@@ -175,18 +175,24 @@ fn test() -> Result<()> {
     // own draws new cases each run (that is how the oracle's ill-conditioned trains were found).
     c.env("PROPTEST_RNG_SEED", PROPTEST_SEED);
     run("cargo test --workspace --release", c)?;
-    // The example that walks the whole chain (`cargo test` only builds it). The same profile
-    // settings as the tests, so that nothing is built again.
+    // The example that walks the whole chain (`cargo test` only builds it). Built as the tests
+    // were (the whole workspace, so the same features; the same profile settings), so that
+    // nothing is built again, then run (`cargo run -p core-nostd` would resolve the core's
+    // features alone and build it and its dependencies once more).
     let mut c = cargo();
     c.args([
-        "run",
+        "build",
+        "--workspace",
         "--release",
-        "-p",
-        "core-nostd",
         "--example",
         "edge_sweep",
     ]);
     c.env("CARGO_PROFILE_RELEASE_OVERFLOW_CHECKS", "true");
+    run("build example edge_sweep", c)?;
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| root().join("target"), std::path::PathBuf::from);
+    let mut c = Command::new(target.join("release").join("examples").join("edge_sweep"));
+    c.current_dir(root());
     run(
         "example edge_sweep (events -> network -> readout -> yaw)",
         c,
