@@ -6,8 +6,8 @@
 //! A target that already exists and is not a regular file (`/dev/null`, `/dev/stdout`, a named
 //! pipe: [`is_stream`]) is written in place instead: renaming a file onto it would replace the
 //! device or pipe itself (as root, `--out /dev/null` would leave a regular file at
-//! `/dev/null`), and a stream cannot be "absent" anyway. `-` names standard output. An output that is a link is followed:
-//! the file it points to is replaced, and the link stays.
+//! `/dev/null`), and a stream cannot be "absent" anyway. `-` names standard output. An output
+//! that is a link is followed: the file it points to is replaced, and the link stays.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -19,10 +19,10 @@ use anyhow::{bail, Context, Result};
 /// [`AtomicFile::commit`] and removed if dropped before.
 pub struct AtomicFile {
     path: PathBuf,
-    tmp: PathBuf,
+    /// The temporary file; `None` for a stream ([`is_stream`]), written in place: nothing to
+    /// rename or remove.
+    tmp: Option<PathBuf>,
     w: BufWriter<File>,
-    /// Written in place ([`is_stream`]): nothing to rename or remove.
-    in_place: bool,
     committed: bool,
 }
 
@@ -32,24 +32,17 @@ impl AtomicFile {
     /// # Errors
     /// When it cannot be created.
     pub fn create(path: &Path) -> Result<Self> {
-        let path = &output_path(path);
-        let in_place = is_stream(path);
-        let tmp = if in_place {
-            path.to_path_buf()
-        } else {
-            temp_path(path, "")
+        let path = output_path(path);
+        let tmp = (!is_stream(&path)).then(|| temp_path(&path, ""));
+        let (file, opened) = match &tmp {
+            Some(tmp) => (File::create(tmp), tmp),
+            None => (std::fs::OpenOptions::new().append(true).open(&path), &path),
         };
-        let file = if in_place {
-            std::fs::OpenOptions::new().append(true).open(path)
-        } else {
-            File::create(&tmp)
-        }
-        .with_context(|| format!("cannot create {}", tmp.display()))?;
+        let file = file.with_context(|| format!("cannot create {}", opened.display()))?;
         Ok(Self {
-            path: path.to_path_buf(),
+            path,
             tmp,
             w: BufWriter::with_capacity(1 << 16, file),
-            in_place,
             committed: false,
         })
     }
@@ -70,8 +63,8 @@ impl AtomicFile {
     /// When the data cannot be written or the file cannot be renamed.
     pub fn commit(mut self) -> Result<()> {
         self.finish_writing()?;
-        if !self.in_place {
-            place(&self.tmp, &self.path)
+        if let Some(tmp) = &self.tmp {
+            place(tmp, &self.path)
                 .with_context(|| format!("cannot write {}", self.path.display()))?;
         }
         self.committed = true;
@@ -90,8 +83,8 @@ impl AtomicFile {
 
 impl Drop for AtomicFile {
     fn drop(&mut self) {
-        if !self.committed && !self.in_place {
-            let _ = std::fs::remove_file(&self.tmp);
+        if let (false, Some(tmp)) = (self.committed, &self.tmp) {
+            let _ = std::fs::remove_file(tmp);
         }
     }
 }
@@ -221,8 +214,7 @@ pub fn commit_all(mut outputs: Vec<Staged>) -> Result<()> {
     let moves: Vec<(PathBuf, PathBuf)> = outputs
         .iter()
         .filter_map(|o| match o {
-            Staged::File(f) if f.in_place => None,
-            Staged::File(f) => Some((f.tmp.clone(), f.path.clone())),
+            Staged::File(f) => f.tmp.clone().map(|tmp| (tmp, f.path.clone())),
             Staged::Path(p) => Some((p.tmp.clone(), p.path.clone())),
         })
         .collect();
