@@ -40,7 +40,7 @@ fn targets() -> Result<Vec<Target>> {
 /// One target folder for both fuzz crates: what they share (libFuzzer, built from C++ by
 /// `libfuzzer-sys`, and the crates they both use) is built once.
 fn fuzz_target_dir() -> std::path::PathBuf {
-    root().join("target").join("fuzz")
+    xtask::target_dir().join("fuzz")
 }
 
 /// `cargo` of the nightly toolchain, whatever toolchain runs this xtask.

@@ -189,9 +189,7 @@ fn test() -> Result<()> {
     ]);
     c.env("CARGO_PROFILE_RELEASE_OVERFLOW_CHECKS", "true");
     run("build example edge_sweep", c)?;
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map_or_else(|| root().join("target"), std::path::PathBuf::from);
-    let mut c = Command::new(target.join("release").join("examples").join("edge_sweep"));
+    let mut c = Command::new(xtask::target_dir().join("release/examples/edge_sweep"));
     c.current_dir(root());
     run(
         "example edge_sweep (events -> network -> readout -> yaw)",
