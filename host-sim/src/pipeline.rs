@@ -150,6 +150,22 @@ pub struct RunOutput {
     pub csv: Option<AtomicFile>,
 }
 
+impl RunOutput {
+    /// Pearson correlation of this run's output values with `other`'s, sample by sample over
+    /// the samples both have (two runs of one recording on the same output grid: the fixed
+    /// point pipeline against its f64 oracle).
+    #[must_use]
+    pub fn correlation_with(&self, other: &Self) -> f64 {
+        let (a, b): (Vec<f64>, Vec<f64>) = self
+            .samples
+            .iter()
+            .zip(&other.samples)
+            .map(|(x, y)| (x.1, y.1))
+            .unzip();
+        crate::eval::metrics::pearson(&a, &b)
+    }
+}
+
 /// The sensor geometry a run uses: flags first, then the recording (its header, `meta.json` or
 /// `calib.txt`), then the events' extent; the principal point defaults to the sensor centre.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -40,13 +40,7 @@ fn calibrated_yaw_rate_on_every_synthetic_sequence() {
             ..RunOptions::default()
         };
         let float = run_pipeline(&float_args, &rec).expect("run float");
-        let (a, b): (Vec<f64>, Vec<f64>) = out
-            .samples
-            .iter()
-            .zip(&float.samples)
-            .map(|(x, y)| (x.1, y.1))
-            .unzip();
-        let fixed_vs_float = pearson(&a, &b);
+        let fixed_vs_float = out.correlation_with(&float);
         eprintln!(
             "{name}: correlation {corr:.3}, RMSE {:.1} % of peak; fixed vs float {fixed_vs_float:.4}",
             err * 100.0

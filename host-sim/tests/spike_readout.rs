@@ -9,7 +9,7 @@
 //! 4 min of CPU in release (the f64 networks compute every spike of the whole sensor), spread
 //! over threads: every sequence and every pipeline on its own.
 
-use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
+use host_sim::eval::metrics::{resample, rmse, Resample};
 use host_sim::eval::Series;
 use host_sim::formats;
 use host_sim::pipeline::{run_pipeline, Model, ReadoutKind, RunOptions};
@@ -60,17 +60,11 @@ fn measure(seq: &std::path::Path) -> Measured {
             })
             .map(|h| h.join().expect("a run panicked"))
     });
-    let (a, b): (Vec<f64>, Vec<f64>) = fixed
-        .samples
-        .iter()
-        .zip(&float.samples)
-        .map(|(x, y)| (x.1, y.1))
-        .unzip();
     Measured {
         rmse_cal: rmse_against(&calibrated.samples, &gt),
         rmse_spk: rmse_against(&fixed.samples, &gt),
         outputs: fixed.outputs,
-        fixed_vs_float: pearson(&a, &b),
+        fixed_vs_float: fixed.correlation_with(&float),
     }
 }
 
