@@ -367,19 +367,31 @@ fn a_plot_that_cannot_be_written_leaves_no_output() {
     assert!(leftovers(d.path()).is_empty(), "{:?}", leftovers(d.path()));
 }
 
+/// The edge recording `rec.csv` in `dir` and what `host-sim run` makes of it read from and
+/// written to files (`file.csv`): what the other ways in and out must reproduce.
+fn edge_recording_and_its_output(dir: &Path) -> (PathBuf, PathBuf) {
+    let input = dir.join("rec.csv");
+    edge_csv(&input);
+    let g = geometry();
+    let out = dir.join("file.csv");
+    assert_ok(&run(args![
+        "run", input, "--out", out, g[0], g[1], g[2], g[3], g[4], g[5]
+    ]));
+    (input, out)
+}
+
+/// A named pipe at `path`.
+fn mkfifo(path: &Path) {
+    assert!(Command::new("mkfifo").arg(path).status().unwrap().success());
+}
+
 #[test]
 fn a_fifo_is_read_once_like_a_file() {
     let d = tmp();
-    let input = d.path().join("rec.csv");
-    edge_csv(&input);
+    let (input, from_file) = edge_recording_and_its_output(d.path());
     let fifo = d.path().join("pipe.csv");
-    let st = Command::new("mkfifo").arg(&fifo).status().unwrap();
-    assert!(st.success());
+    mkfifo(&fifo);
     let g = geometry();
-    let from_file = d.path().join("file.csv");
-    assert_ok(&run(args![
-        "run", input, "--out", from_file, g[0], g[1], g[2], g[3], g[4], g[5]
-    ]));
     for cmd in ["run", "convert"] {
         let feeder = {
             let (fifo, input) = (fifo.clone(), input.clone());
@@ -430,18 +442,12 @@ fn drain(fifo: &Path) -> std::sync::mpsc::Receiver<Vec<u8>> {
 fn an_output_that_is_a_pipe_stays_a_pipe() {
     use std::os::unix::fs::FileTypeExt;
     let d = tmp();
-    let input = d.path().join("rec.csv");
-    edge_csv(&input);
+    let (input, file) = edge_recording_and_its_output(d.path());
     let g = geometry();
-    let file = d.path().join("file.csv");
-    let file_png = d.path().join("file.png");
-    assert_ok(&run(args![
-        "run", input, "--out", file, "--plot", file_png, g[0], g[1], g[2], g[3], g[4], g[5]
-    ]));
     let fifo = d.path().join("out.csv");
     let fifo_png = d.path().join("out.png");
     for p in [&fifo, &fifo_png] {
-        assert!(Command::new("mkfifo").arg(p).status().unwrap().success());
+        mkfifo(p);
     }
     let (csv, png) = (drain(&fifo), drain(&fifo_png));
     let o = run(args![
@@ -531,13 +537,8 @@ fn an_output_that_is_a_pipe_stays_a_pipe() {
 #[test]
 fn a_dash_reads_standard_input() {
     let d = tmp();
-    let input = d.path().join("rec.csv");
-    edge_csv(&input);
+    let (input, from_file) = edge_recording_and_its_output(d.path());
     let g = geometry();
-    let from_file = d.path().join("file.csv");
-    assert_ok(&run(args![
-        "run", input, "--out", from_file, g[0], g[1], g[2], g[3], g[4], g[5]
-    ]));
     for (cmd, expected) in [("run", &from_file), ("convert", &input)] {
         let mut c = Command::new(BIN);
         c.arg(cmd).arg("-");
