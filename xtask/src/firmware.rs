@@ -115,21 +115,30 @@ pub fn ensure_target() -> Result<()> {
     run(&format!("rustup target add {}", crate::TARGET), c)
 }
 
-fn firmware_cargo(board: Board) -> Command {
+fn firmware_cargo() -> Command {
     let mut c = cargo();
     c.current_dir(root().join("firmware"));
-    // The firmware is its own workspace with one target dir per board, whatever the caller's
-    // CARGO_TARGET_DIR says: `elf()` looks for the image there.
-    c.env("CARGO_TARGET_DIR", xtask::firmware_target_dir(board.name()));
+    // The firmware is its own workspace, built into its own target dir whatever the caller's
+    // CARGO_TARGET_DIR says: `build` copies each board's image from there.
+    c.env("CARGO_TARGET_DIR", xtask::firmware_target_dir());
     c
 }
 
-/// Builds the firmware for `board` (release).
+/// Builds the firmware for `board` (release) and copies its ELF to [`elf`]`(board)`.
 pub fn build(board: Board) -> Result<()> {
     ensure_target()?;
-    let mut c = firmware_cargo(board);
+    let mut c = firmware_cargo();
     c.args(["build", "--release"]).args(board.cargo_args());
-    run(&format!("firmware build ({})", board.name()), c)
+    run(&format!("firmware build ({})", board.name()), c)?;
+    // Cargo puts every board's image at one path (a build that is up to date puts it there
+    // again), so each board's is kept apart as soon as it is built.
+    let (built, kept) = (xtask::firmware_built("tde-firmware"), elf(board));
+    if let Some(dir) = kept.parent() {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    std::fs::copy(&built, &kept)
+        .with_context(|| format!("cannot copy {} to {}", built.display(), kept.display()))?;
+    Ok(())
 }
 
 /// Prints flash and RAM use of the last build (`arm-none-eabi-size -A`, summed per region);
@@ -279,11 +288,11 @@ pub fn qemu(args: &[String]) -> Result<()> {
 /// plain `cargo test`: they need QEMU and the firmware just built).
 pub fn check() -> Result<()> {
     ensure_target()?;
-    let mut c = firmware_cargo(Board::Qemu);
+    let mut c = firmware_cargo();
     c.args(["fmt", "--check"]);
     run("firmware fmt --check", c)?;
     for board in BOARDS {
-        let mut c = firmware_cargo(board);
+        let mut c = firmware_cargo();
         c.args(["clippy", "--release"])
             .args(board.cargo_args())
             .args(["--", "-D", "warnings"]);
@@ -293,8 +302,9 @@ pub fn check() -> Result<()> {
     }
     // The event path (link receiver + pipeline) must link no panic: this binary's panic handler
     // calls an undefined symbol (see firmware/src/bin/no-panic-check.rs).
-    let mut c = firmware_cargo(Board::Qemu);
-    c.args(["build", "--release", "--bin", "no-panic-check"]);
+    let mut c = firmware_cargo();
+    c.args(["build", "--release", "--bin", "no-panic-check"])
+        .args(Board::Qemu.cargo_args());
     run("firmware no-panic-check (the event path links no panic)", c)?;
     // One test at a time: each QEMU run takes a core, and the tests share their recordings.
     // The release profile with overflow checks, as the workspace tests of `test`, so that

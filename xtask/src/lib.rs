@@ -85,19 +85,24 @@ pub fn host_sim_run<S: AsRef<std::ffi::OsStr>>(
     run(&format!("host-sim run {}", input.display()), c)
 }
 
-/// Each firmware board's own target dir (the boards share the target triple and the binary
-/// name, so one dir per board keeps their ELFs apart): `firmware/target/<board>`.
-pub fn firmware_target_dir(board: &str) -> PathBuf {
-    root().join("firmware/target").join(board)
+/// The firmware workspace's target dir, `firmware/target`, one for every board: what the
+/// boards share (the build scripts, the proc macros, the crates built with the same features)
+/// is built once.
+pub fn firmware_target_dir() -> PathBuf {
+    root().join("firmware/target")
 }
 
-/// The firmware's ELF for a board (`qemu`, `stm32f405`, `stm32h743`):
-/// `firmware/target/<board>/thumbv7em-none-eabihf/release/tde-firmware`.
+/// The firmware's ELF for a board (`qemu`, `stm32f405`, `stm32h743`): the boards share the
+/// target triple and the binary name, so cargo's `firmware/target/thumbv7em-none-eabihf/
+/// release/tde-firmware` is the last board built; each board's build is copied to
+/// `firmware/target/<board>/tde-firmware`.
 pub fn firmware_elf(board: &str) -> PathBuf {
-    firmware_target_dir(board)
-        .join(TARGET)
-        .join("release")
-        .join("tde-firmware")
+    firmware_target_dir().join(board).join("tde-firmware")
+}
+
+/// Where cargo puts the firmware binary `bin` of the last board built.
+pub fn firmware_built(bin: &str) -> PathBuf {
+    firmware_target_dir().join(TARGET).join("release").join(bin)
 }
 
 /// The value of `k` in a line of `key=value` fields.
