@@ -39,15 +39,21 @@ pub fn cargo() -> Command {
     c
 }
 
-/// Runs `cmd` (its output to the terminal); fails unless it exits with 0.
+/// Runs `cmd` (its output to the terminal); fails unless it exits with 0. Says how long it
+/// took (where a `cargo xtask test` run spends its time).
 pub fn run(what: &str, mut cmd: Command) -> Result<()> {
     eprintln!("xtask: {what}");
+    let start = std::time::Instant::now();
     let status = cmd
         .status()
         .with_context(|| format!("cannot start: {what}"))?;
     if !status.success() {
         bail!("failed: {what} ({status})");
     }
+    eprintln!(
+        "xtask: {what}: done in {:.1} s",
+        start.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
