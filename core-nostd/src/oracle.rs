@@ -782,7 +782,8 @@ impl OracleGate {
 
 /// The estimate of the population (0: the paper's units, 1: the slow units) whose decodes
 /// agree more in sign per unit of its time constant (`twins == false`, a layout without twin
-/// units: that decodes more); the slow units' scaled by their recent share of decodes.
+/// units: that decodes more), the slow units' figure scaled up while their histograms fill
+/// ([`OracleField::fill`]); the slow units' value scaled by their recent share of decodes.
 fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> Option<f64> {
     let [fast, slow] = fields;
     let by = |f: &OracleField| {
@@ -792,7 +793,7 @@ fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> Option<f64
             f.rate()
         }
     };
-    if by(fast) < by(slow) {
+    if by(fast) < by(slow) * slow.fill() {
         slow.estimate().map(|v| v * slow.recent_share())
     } else {
         fast.estimate()
@@ -1564,6 +1565,20 @@ impl OracleField {
             .map(|[neg, pos]| sign_agreement(neg.iter().sum(), pos.iter().sum()))
             .sum();
         agree / self.tau_a
+    }
+
+    /// The decode rate of the last [`crate::readout::field::SHORT_TAU_US`] over that of the
+    /// histograms, from 1 (steady or slowing) to `tau_A / SHORT_TAU_US` (histograms that have
+    /// just begun to fill).
+    pub fn fill(&self) -> f64 {
+        let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
+        let rate = self.rate();
+        if rate > 0.0 {
+            (self.short / short_tau / rate)
+                .clamp(1.0, 3.0_f64.min((self.tau_a / short_tau).floor().max(1.0)))
+        } else {
+            1.0
+        }
     }
 
     /// 5/4 of the decode rate of the last [`crate::readout::field::SHORT_TAU_US`] over that of

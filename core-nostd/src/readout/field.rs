@@ -64,7 +64,10 @@
 //! - The output comes from the population whose decodes agree in sign within their regions
 //!   the more per second ([`RANDOM_AGREEMENT`]): the paper's units, or the slow units in a slow
 //!   scene (where the paper's units time an edge near the end of their window they alias, and
-//!   their decodes take either sign). The slow units' value is scaled by 5/4 of their decode
+//!   their decodes take either sign). The slow units' figure is scaled up by how much their
+//!   decode rate over the last [`SHORT_TAU_US`] exceeds their histograms' average (at most
+//!   their time constant over it, 5x): at a slow turn's start their 100 ms histograms are still
+//!   filling, while the paper's units, timing only the fastest crossings, read high. The slow units' value is scaled by 5/4 of their decode
 //!   rate over the last [`SHORT_TAU_US`] relative to their histograms' (at most 1): their
 //!   100 ms histograms remember a turn that is slowing down longer than it lasts. (Only a drop
 //!   below 4/5 scales: the 20 ms rate's own scatter would otherwise bias a steady slow turn
@@ -589,12 +592,18 @@ impl Field {
     pub fn estimate(&self) -> FieldEstimate {
         let by = |pop| {
             if self.by_agreement {
-                self.consistent_rate(pop)
+                self.consistent_samples_q16(pop)
             } else {
-                self.rate(pop)
+                self.samples_q16(pop)
             }
         };
-        let pop = if by(Population::Fast) >= by(Population::Slow) {
+        let tau = |pop: Population| u128::from(self.tau_us.get(pop as usize).copied().unwrap_or(1));
+        // Per µs of each population's time constant, compared without rounding:
+        // `fast / tau_fast >= slow / tau_slow` as `fast · tau_slow >= slow · tau_fast`.
+        let fast = u128::from(by(Population::Fast)) * tau(Population::Slow);
+        let slow =
+            u128::from(self.filled(Population::Slow, by(Population::Slow))) * tau(Population::Fast);
+        let pop = if fast >= slow {
             Population::Fast
         } else {
             Population::Slow
@@ -622,18 +631,43 @@ impl Field {
         }
     }
 
-    /// Decoded bursts per µs of a population, averaged over its histograms' time constant
-    /// (Q16): the slow units may answer only where edges are mostly slow.
-    fn rate(&self, pop: Population) -> u64 {
+    /// `score` of a population scaled by how much its decode rate over the last
+    /// [`SHORT_TAU_US`] exceeds its histograms' average (at most their time constant over
+    /// `SHORT_TAU_US`): histograms that are still filling. The ratio is taken of the samples
+    /// themselves (`short · tau / (SHORT_TAU_US · samples)`), not of the rounded rates.
+    fn filled(&self, pop: Population, score: u64) -> u64 {
+        let short = u128::from(self.short.get(pop as usize).copied().unwrap_or(0));
+        let tau = u64::from(self.tau_us.get(pop as usize).copied().unwrap_or(1).max(1));
+        let num = short * u128::from(tau);
+        let den = u128::from(self.samples_q16(pop)) * u128::from(SHORT_TAU_US);
+        let cap = (tau / u64::from(SHORT_TAU_US)).max(1);
+        if num > den && den > 0 {
+            let scaled = u128::from(score) * num / den;
+            u64::try_from(scaled)
+                .unwrap_or(u64::MAX)
+                .min(score.saturating_mul(cap))
+        } else {
+            score
+        }
+    }
+
+    /// The samples in a population's histograms (Q16).
+    fn samples_q16(&self, pop: Population) -> u64 {
         let i = pop as usize;
         let mass: u64 = self.mass.get(i).map_or(0, |m| m.iter().flatten().sum());
         let w = u64::from(self.weight.get(i).copied().unwrap_or(UNIT_WEIGHT).max(1));
-        let tau = u64::from(self.tau_us.get(i).copied().unwrap_or(1).max(1));
-        ((mass << 16) / w) / tau
+        (mass << 16) / w
     }
 
-    /// Decodes per µs of a population that agree in sign within their region, averaged over
-    /// its histograms' time constant (Q16): per region `(P - N)² / (P + N)` for the masses `P`
+    /// Decoded bursts per µs of a population, averaged over its histograms' time constant
+    /// (Q16): the slow units may answer only where edges are mostly slow.
+    fn rate(&self, pop: Population) -> u64 {
+        let tau = u64::from(self.tau_us.get(pop as usize).copied().unwrap_or(1).max(1));
+        self.samples_q16(pop) / tau
+    }
+
+    /// Decodes of a population that agree in sign within their region, in its histograms
+    /// (Q16 samples; per µs of its time constant, what the choice of population compares): per region `(P - N)² / (P + N)` for the masses `P`
     /// and `N` of the two signs, i.e. its decodes times the square of their net agreement,
     /// less what random signs give ([`RANDOM_AGREEMENT`]; a region of the paper's units holds
     /// a few decodes over its 10 ms, and random signs alone would count).
@@ -641,7 +675,7 @@ impl Field {
     /// units still burst, but mostly on the edge after next (the pattern aliases: a decode of
     /// either sign); the slow units time the same edges with the right sign. Counting decodes
     /// alone would pick the paper's units there.
-    fn consistent_rate(&self, pop: Population) -> u64 {
+    fn consistent_samples_q16(&self, pop: Population) -> u64 {
         let i = pop as usize;
         let w = u64::from(self.weight.get(i).copied().unwrap_or(UNIT_WEIGHT).max(1));
         // A sample weighs `w` now (mass units); at most the population's mass, < 2^46.
@@ -652,8 +686,7 @@ impl Field {
             .iter()
             .map(|&[neg, pos]| sign_agreement(neg, pos, w))
             .sum();
-        let tau = u64::from(self.tau_us.get(i).copied().unwrap_or(1).max(1));
-        ((agree << 16) / w) / tau
+        (agree << 16) / w
     }
 
     /// One population's estimate.
@@ -1321,6 +1354,43 @@ mod tests {
         let bands = all_bands(|side, band| if (side, band) == (1, 0) { -300 } else { 300 });
         feed(&mut f, &bands);
         assert!(rad_s(f.estimate()).is_some_and(|v| v > 0.2));
+    }
+
+    #[test]
+    fn slow_units_still_filling_their_histograms_answer_a_turns_start() {
+        // A slow turn starts: the paper's units have decoded for 60 ms, reading high (they
+        // time only the fastest crossings, 0.15 rad/s); the slow units began 20 ms ago, at the
+        // true 0.066 rad/s, and their 100 ms histograms hold a fifth of what a steady turn
+        // leaves there. Averaged over the histograms, the paper's units agree more per second;
+        // over the last 20 ms, the slow units: they answer.
+        let mut f = field();
+        for period in 0..60u32 {
+            for side in 0..2 {
+                for band in 0..COL_BANDS {
+                    for row in 0..ROW_BANDS {
+                        for up in [false, true] {
+                            let (x, y) = pixel(side, band, up, row);
+                            f.add(Population::Fast, x, y, log2_rate(150), true);
+                            if period >= 40 {
+                                for _ in 0..2 {
+                                    f.add(Population::Slow, x, y, log2_rate(66), true);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            f.age();
+        }
+        // Agreeing decodes per µs of each population's time constant (10 ms, 100 ms).
+        let fast = f.consistent_samples_q16(Population::Fast) * 10;
+        let slow = f.consistent_samples_q16(Population::Slow);
+        assert!(
+            fast > slow,
+            "the histograms' averages alone would pick the paper's units"
+        );
+        let v = rad_s(f.estimate()).expect("a rotation");
+        assert!((v - 0.066).abs() < 0.007, "{v}");
     }
 
     #[test]
