@@ -1574,8 +1574,7 @@ impl OracleField {
         let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
         let rate = self.rate();
         if rate > 0.0 {
-            (self.short / short_tau / rate)
-                .clamp(1.0, 3.0_f64.min((self.tau_a / short_tau).floor().max(1.0)))
+            (self.short / short_tau / rate).clamp(1.0, (self.tau_a / short_tau).floor().max(1.0))
         } else {
             1.0
         }

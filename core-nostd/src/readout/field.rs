@@ -67,11 +67,11 @@
 //!   their decodes take either sign). The slow units' figure is scaled up by how much their
 //!   decode rate over the last [`SHORT_TAU_US`] exceeds their histograms' average (at most
 //!   their time constant over it, 5x): at a slow turn's start their 100 ms histograms are still
-//!   filling, while the paper's units, timing only the fastest crossings, read high. The slow units' value is scaled by 5/4 of their decode
-//!   rate over the last [`SHORT_TAU_US`] relative to their histograms' (at most 1): their
-//!   100 ms histograms remember a turn that is slowing down longer than it lasts. (Only a drop
-//!   below 4/5 scales: the 20 ms rate's own scatter would otherwise bias a steady slow turn
-//!   low.)
+//!   filling, while the paper's units, timing only the fastest crossings, read high. The slow
+//!   units' value is scaled by 5/4 of their decode rate over the last [`SHORT_TAU_US`] relative
+//!   to their histograms' (at most 1): their 100 ms histograms remember a turn that is slowing
+//!   down longer than it lasts. (Only a drop below 4/5 scales: the 20 ms rate's own scatter
+//!   would otherwise bias a steady slow turn low.)
 //! - A layout with no mirrored bands (such as two boxes placed at random) uses each band's side
 //!   alone, with no spread gate.
 //!
@@ -597,7 +597,7 @@ impl Field {
                 self.samples_q16(pop)
             }
         };
-        let tau = |pop: Population| u128::from(self.tau_us.get(pop as usize).copied().unwrap_or(1));
+        let tau = |pop| u128::from(self.tau_us(pop));
         // Per µs of each population's time constant, compared without rounding:
         // `fast / tau_fast >= slow / tau_slow` as `fast · tau_slow >= slow · tau_fast`.
         let fast = u128::from(by(Population::Fast)) * tau(Population::Slow);
@@ -637,7 +637,7 @@ impl Field {
     /// themselves (`short · tau / (SHORT_TAU_US · samples)`), not of the rounded rates.
     fn filled(&self, pop: Population, score: u64) -> u64 {
         let short = u128::from(self.short.get(pop as usize).copied().unwrap_or(0));
-        let tau = u64::from(self.tau_us.get(pop as usize).copied().unwrap_or(1).max(1));
+        let tau = self.tau_us(pop);
         let num = short * u128::from(tau);
         let den = u128::from(self.samples_q16(pop)) * u128::from(SHORT_TAU_US);
         let cap = (tau / u64::from(SHORT_TAU_US)).max(1);
@@ -662,12 +662,17 @@ impl Field {
     /// Decoded bursts per µs of a population, averaged over its histograms' time constant
     /// (Q16): the slow units may answer only where edges are mostly slow.
     fn rate(&self, pop: Population) -> u64 {
-        let tau = u64::from(self.tau_us.get(pop as usize).copied().unwrap_or(1).max(1));
-        self.samples_q16(pop) / tau
+        self.samples_q16(pop) / self.tau_us(pop)
     }
 
-    /// Decodes of a population that agree in sign within their region, in its histograms
-    /// (Q16 samples; per µs of its time constant, what the choice of population compares): per region `(P - N)² / (P + N)` for the masses `P`
+    /// A population's histogram time constant (µs, at least 1).
+    fn tau_us(&self, pop: Population) -> u64 {
+        u64::from(self.tau_us.get(pop as usize).copied().unwrap_or(1).max(1))
+    }
+
+    /// Decodes of a population that agree in sign within their region, in its histograms (Q16
+    /// samples; per µs of its time constant, what the choice of population compares): per
+    /// region `(P - N)² / (P + N)` for the masses `P`
     /// and `N` of the two signs, i.e. its decodes times the square of their net agreement,
     /// less what random signs give ([`RANDOM_AGREEMENT`]; a region of the paper's units holds
     /// a few decodes over its 10 ms, and random signs alone would count).
@@ -1383,8 +1388,9 @@ mod tests {
             f.age();
         }
         // Agreeing decodes per µs of each population's time constant (10 ms, 100 ms).
-        let fast = f.consistent_samples_q16(Population::Fast) * 10;
-        let slow = f.consistent_samples_q16(Population::Slow);
+        let per_tau =
+            |pop| u128::from(f.consistent_samples_q16(pop)) * 1_000_000 / u128::from(f.tau_us(pop));
+        let (fast, slow) = (per_tau(Population::Fast), per_tau(Population::Slow));
         assert!(
             fast > slow,
             "the histograms' averages alone would pick the paper's units"
