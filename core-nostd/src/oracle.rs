@@ -883,6 +883,38 @@ struct SpikeTarget<'t, L: crate::layout::Layout> {
     stride: &'t mut OracleStrideChoice,
     near_floor_s: f64,
     samples: &'t mut u64,
+    /// For the layout's paper's units beside near units: the near units' decoder state.
+    near: Option<NearView<'t>>,
+}
+
+/// What the layout's units read of the near units' decoding (see
+/// [`crate::readout::spikes`], "Near units"): per cell the last decoded onset and each unit's
+/// decoded drive for it.
+struct NearView<'t> {
+    onsets: &'t [Option<(f64, f64, bool)>],
+    decodes: &'t [[(Option<f64>, bool); 2]],
+    /// The share of its ceiling above which a near unit's drive is not read.
+    share: f64,
+    w_trg: f64,
+}
+
+impl NearView<'_> {
+    /// Whether near unit `u` of `cell` decoded the onset at `t_trg` above its share of the
+    /// ceiling: an edge the near units cannot time.
+    fn decoded_at_ceiling(&self, cell: usize, u: usize, t_trg: f64) -> bool {
+        let Some((t0, own, _)) = self.onsets.get(cell).copied().flatten() else {
+            return false;
+        };
+        let d = self
+            .decodes
+            .get(cell)
+            .and_then(|dd| dd.get(u))
+            .and_then(|e| e.0);
+        match d {
+            Some(d) if (t_trg - t0).abs() <= SAME_ONSET_F64 => d > self.share * self.w_trg * own,
+            _ => false,
+        }
+    }
 }
 
 /// The decoder's view of one unit (see [`crate::readout::spikes`]).
@@ -1029,8 +1061,24 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         k: usize,
         f: impl FnOnce(&mut SpikePopulation, &mut SpikeTarget<'_, L>),
     ) {
-        let Some(pop) = self.pops.get_mut(k) else {
+        // The layout's paper's units read the near units' decodes (split borrow: the near
+        // units come after them).
+        if k >= self.pops.len() {
             return;
+        }
+        let (head, tail) = self.pops.split_at_mut(k + 1);
+        let Some(pop) = head.last_mut() else {
+            return;
+        };
+        let near = if pop.fast_reach_s.is_none() && !pop.near {
+            tail.iter().find(|q| q.near).map(|q| NearView {
+                onsets: &q.onsets,
+                decodes: &q.decodes,
+                share: (f64::from(crate::readout::spikes::NEAR_DRIVE_SHARE_LOG2) / 65_536.0).exp2(),
+                w_trg: q.p.w_trg,
+            })
+        } else {
+            None
         };
         // The near units' decodes go to the paper's units' field.
         let which = usize::from(pop.fast_reach_s.is_some());
@@ -1047,6 +1095,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             stride: &mut self.stride,
             near_floor_s: self.near_floor_s,
             samples: &mut self.samples,
+            near,
         };
         f(pop, &mut target);
     }
@@ -1385,7 +1434,12 @@ impl SpikePopulation {
                 let read = match (near_chosen, self.near) {
                     (false, near) => !near,
                     (true, true) => dt_s >= target.near_floor_s,
-                    (true, false) => dt_s < stride * target.near_floor_s,
+                    // One stride times each onset: the layout's units those the near units
+                    // decoded at their ceiling.
+                    (true, false) => target
+                        .near
+                        .as_ref()
+                        .is_some_and(|n| n.decoded_at_ceiling(cell, u, t_trg)),
                 };
                 if !read {
                     return true;

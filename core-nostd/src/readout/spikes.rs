@@ -58,9 +58,13 @@
 //! trace it is divided by, rebuilt from decoded onsets, to a few per cent, so close to its
 //! ceiling (`w_T` times the own trace) the decoded crossing time is mostly error. With the near
 //! units chosen they are therefore read only for drives up to [`NEAR_DRIVE_SHARE_LOG2`] of the
-//! ceiling (a one-pixel crossing of at least 2.1 ms) and the layout's units for the faster
-//! edges (a crossing of the stride under `stride` times that). The slow units' reach grows by
-//! the stride when the near units are read (one pixel in 54 ms is two in 108 ms at stride 2).
+//! ceiling (a one-pixel crossing of at least 2.1 ms), and the layout's units only for the
+//! onsets that the near unit facing the same way decoded above it: one stride times each
+//! onset. (Reading the layout's units for every crossing of the stride under `stride` times
+//! that floor added a second decode to onsets the near units had timed already, from the fast
+//! tail of the layout's decodes: on drone seed 3, 162 k of them while |w| >= 0.6 rad/s, 109 k
+//! now.) The slow units' reach grows by the stride when the near units are read (one pixel in
+//! 54 ms is two in 108 ms at stride 2).
 //!
 //! Causal: the network hands a spike at `t` over by the first output time at or after `t`,
 //! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
@@ -106,7 +110,8 @@ use crate::unit::Kernel;
 /// the paper's units). Closer to the ceiling a drive decoded from spikes is not precise enough:
 /// `dt` is `tau_F` times the logarithm of that share, and the own trace rebuilt from decoded
 /// onsets is good to a few per cent, so the fastest edges would read slow. Those edges cross
-/// two pixels in under twice that time, and the layout's units time them instead.
+/// two pixels in under twice that time, and the layout's units time them instead (the onsets
+/// a near unit decoded above this share; see the module documentation, "Near units").
 pub const NEAR_DRIVE_SHARE_LOG2: i32 = -9962;
 
 /// `log2(e)` in Q32.
@@ -300,6 +305,23 @@ impl SpikeCell {
     #[inline]
     fn t_onset(&self) -> Option<u32> {
         (self.own_bits() != 0).then_some(self.onset & !7)
+    }
+
+    /// Whether unit `u` decoded the onset at `t_trg` (the same TRG event, within
+    /// [`SAME_ONSET_US`]) with a drive above [`NEAR_DRIVE_SHARE_LOG2`] of the pixel's ceiling
+    /// (`log2_w_trg`: `log2(w_T)`, Q16.16): for the near units, an edge they cannot time.
+    fn decoded_at_ceiling(&self, t_trg: u32, u: usize, log2_w_trg: i32) -> bool {
+        let (Some(t0), Some(&l2d)) = (self.t_onset(), self.l2d.get(u)) else {
+            return false;
+        };
+        let apart = (t_trg.wrapping_sub(t0) as i32).unsigned_abs();
+        if l2d == i16::MIN || apart > SAME_ONSET_US + 8 {
+            return false;
+        }
+        let share = l2_unpack(l2d)
+            .saturating_sub(log2_w_trg)
+            .saturating_sub(log2_q16(u64::from(self.own().to_bits()), 27));
+        share > NEAR_DRIVE_SHARE_LOG2
     }
 
     /// Whether the onset before the last came within the busy window before it.
@@ -708,7 +730,14 @@ impl<'a> Decoding<'a> {
     }
 
     /// One spike of unit `dir` at `cell`.
-    fn spike<L: Layout>(&mut self, target: &mut Target<L>, cell: u32, dir: Dir, t_us: u32) {
+    fn spike<L: Layout>(
+        &mut self,
+        target: &mut Target<L>,
+        cell: u32,
+        dir: Dir,
+        t_us: u32,
+        near: Option<&[SpikeCell]>,
+    ) {
         if EventTime::from_us(t_us).is_after(EventTime::from_us(target.now)) {
             target.now = t_us;
         }
@@ -721,7 +750,7 @@ impl<'a> Decoding<'a> {
         else {
             return;
         };
-        self.decoded(target, cell as usize, dir, d);
+        self.decoded(target, cell as usize, dir, d, near);
     }
 
     /// The own trace just after an onset at `t` of a pixel whose last onset was `(t0, own)`.
@@ -739,8 +768,16 @@ impl<'a> Decoding<'a> {
     }
 
     /// A decoded TRG event of unit `dir` at `cell`: the pixel's own trace, the gate, then the
-    /// decode waits for the twin's answer.
-    fn decoded<L: Layout>(&mut self, target: &mut Target<L>, cell: usize, dir: Dir, d: Decoded) {
+    /// decode waits for the twin's answer. `near`: the near units' cells, for the layout's units
+    /// (see [`Decoding::resolve`]).
+    fn decoded<L: Layout>(
+        &mut self,
+        target: &mut Target<L>,
+        cell: usize,
+        dir: Dir,
+        d: Decoded,
+        near: Option<&[SpikeCell]>,
+    ) {
         let Some(c) = self.cells.get(cell).copied() else {
             return;
         };
@@ -761,7 +798,7 @@ impl<'a> Decoding<'a> {
         if !same {
             // A new onset: what waits for the last one is decided now.
             for u in 0..2 {
-                self.resolve(target, cell, u, None);
+                self.resolve(target, cell, u, None, near);
             }
             let own = self.own_after(last.map(|t0| (t0, c.own())), d.t_us);
             if let Some(c) = self.cells.get_mut(cell) {
@@ -790,13 +827,17 @@ impl<'a> Decoding<'a> {
     /// Decides the decode waiting at `cell`, unit `u`: added to the field when the twin
     /// answered the same TRG event at most half as strongly, dropped when it answered more
     /// strongly; with no answer yet, added once a twin at rest could no longer answer within
-    /// that range (at `now`), else left waiting (`false`). `now = None`: decide now.
+    /// that range (at `now`), else left waiting (`false`). `now = None`: decide now. `near`:
+    /// the near units' cells, when these are the layout's units and the layout has near units
+    /// (with the near units chosen, a layout unit's decode is read only for an onset the near
+    /// unit facing the same way decoded at its ceiling).
     fn resolve<L: Layout>(
         &mut self,
         target: &mut Target<L>,
         cell: usize,
         u: usize,
         now: Option<u32>,
+        near: Option<&[SpikeCell]>,
     ) -> bool {
         let decoder = self.decoder;
         let Some(c) = self.cells.get(cell).copied() else {
@@ -893,9 +934,11 @@ impl<'a> Decoding<'a> {
                     (Stride::Layout, Stride::Layout) => true,
                     (Stride::Layout, Stride::Near) => false,
                     (Stride::Near, Stride::Near) => l2dt >= target.near_floor_log2_s,
-                    (Stride::Near, Stride::Layout) => {
-                        l2dt < target.near_floor_log2_s.saturating_add(log2_stride)
-                    }
+                    // The onsets the near units decoded at their ceiling, whatever the layout's
+                    // units read: one stride times each onset.
+                    (Stride::Near, Stride::Layout) => near
+                        .and_then(|n| n.get(cell))
+                        .is_some_and(|n| n.decoded_at_ceiling(t_trg, u, target.log2_w_trg)),
                 };
                 if !read {
                     return true;
@@ -912,15 +955,16 @@ impl<'a> Decoding<'a> {
         true
     }
 
-    /// Decides what waits for a twin that has answered or can no longer answer by `t_us`.
-    fn settle<L: Layout>(&mut self, target: &mut Target<L>, t_us: u32) {
+    /// Decides what waits for a twin that has answered or can no longer answer by `t_us`
+    /// (`near`: as for [`Decoding::resolve`]).
+    fn settle<L: Layout>(&mut self, target: &mut Target<L>, t_us: u32, near: Option<&[SpikeCell]>) {
         for _ in 0..self.queued {
             let Some(cell) = self.dequeue() else {
                 break;
             };
             let mut done = true;
             for u in 0..2 {
-                if !self.resolve(target, cell, u, Some(t_us)) {
+                if !self.resolve(target, cell, u, Some(t_us), near) {
                     done = false;
                 }
             }
@@ -1077,7 +1121,9 @@ impl<L: Layout> NetSink for Spikes<'_, L> {
     const SPIKES: bool = true;
 
     fn spike(&mut self, s: Spike) {
-        self.fast.spike(&mut self.target, s.cell, s.dir, s.t_us);
+        let near = self.near.as_ref().map(|n| &*n.cells);
+        self.fast
+            .spike(&mut self.target, s.cell, s.dir, s.t_us, near);
     }
 }
 
@@ -1094,7 +1140,7 @@ impl<L: Layout> Readout for Spikes<'_, L> {
             return;
         };
         for &t in times {
-            decoding.spike(&mut self.target, cell, dir, t);
+            decoding.spike(&mut self.target, cell, dir, t, None);
         }
     }
 
@@ -1112,12 +1158,13 @@ impl<L: Layout> Readout for Spikes<'_, L> {
         }
         // Every spike up to `t_us` is in: decide what waits for a twin that has answered or can
         // no longer answer.
-        self.fast.settle(target, t_us);
+        let near = self.near.as_ref().map(|n| &*n.cells);
+        self.fast.settle(target, t_us, near);
         for side in [self.slow.as_mut(), self.near.as_mut()]
             .into_iter()
             .flatten()
         {
-            side.settle(target, t_us);
+            side.settle(target, t_us, None);
         }
         // Forget bursts and onsets too old to matter (a few cells per output).
         let (per_output, next) = self.sweep;
@@ -1131,5 +1178,39 @@ impl<L: Layout> Readout for Spikes<'_, L> {
         self.sweep = (per_output, after);
         target.stride.age(self.cal.period_us);
         self.gate.output(&mut target.field)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A near cell whose unit 1 decoded the onset at 10 ms with `share` of its ceiling
+    /// (`log2_w_trg`: `w_T` = 2; own trace 1.5).
+    fn near_cell(share: f64, log2_w_trg: i32) -> SpikeCell {
+        let mut c = SpikeCell::EMPTY;
+        let own = Trace::from_num(1.5);
+        c.set_own(Some(own));
+        c.onset = 10_000;
+        let l2 = log2_w_trg
+            + log2_q16(u64::from(c.own().to_bits()), 27)
+            + (share.log2() * 65_536.0) as i32;
+        c.l2d = [i16::MIN, l2_pack(l2)];
+        c
+    }
+
+    #[test]
+    fn the_layout_reads_an_onset_only_where_the_near_unit_decoded_it_at_its_ceiling() {
+        let log2_w_trg = 1 << 16;
+        let at = near_cell(0.95, log2_w_trg);
+        assert!(at.decoded_at_ceiling(10_000, 1, log2_w_trg));
+        // The same onset, its decode times within SAME_ONSET_US of each other.
+        assert!(at.decoded_at_ceiling(10_000 + SAME_ONSET_US, 1, log2_w_trg));
+        // The near units time this one themselves.
+        assert!(!near_cell(0.85, log2_w_trg).decoded_at_ceiling(10_000, 1, log2_w_trg));
+        // The other unit decoded nothing; another onset 1 ms later is not this one.
+        assert!(!at.decoded_at_ceiling(10_000, 0, log2_w_trg));
+        assert!(!at.decoded_at_ceiling(11_000, 1, log2_w_trg));
+        assert!(!SpikeCell::EMPTY.decoded_at_ceiling(10_000, 1, log2_w_trg));
     }
 }
