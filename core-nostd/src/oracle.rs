@@ -762,6 +762,9 @@ impl OracleGate {
     /// One output period: reads the fields when due, ages them, and says what to output.
     fn output(&mut self, fields: &mut [OracleField; 2], twins: bool) -> (f64, u8) {
         if self.phase == 0 {
+            for field in fields.iter_mut() {
+                field.established = self.confirmation.established();
+            }
             let now = two_population_estimate(fields, twins);
             let answer = self.confirmation.read(now.map(|v| v < 0.0));
             self.last = now.filter(|_| answer);
@@ -1496,6 +1499,9 @@ pub struct OracleField {
     hist: std::vec::Vec<[[f64; ORACLE_BINS]; 2]>,
     recent: f64,
     short: f64,
+    /// The readout has answered one direction for a while (see
+    /// [`crate::readout::field::Field::set_direction_established`]).
+    established: bool,
 }
 
 impl OracleField {
@@ -1536,6 +1542,7 @@ impl OracleField {
             hist: std::vec![[[0.0; ORACLE_BINS]; 2]; 4 * COLS * ROWS],
             recent: 0.0,
             short: 0.0,
+            established: false,
         };
         let mut seen = [[false; COLS]; 2];
         let mut above_bands = 0u8;
@@ -1785,7 +1792,7 @@ impl OracleField {
         } else {
             (neg, -1.0, n)
         };
-        let agree = total >= settled_samples
+        let agree = (self.established || total >= settled_samples)
             && (total - majority) * f64::from(1u32 << SETTLED_MINORITY_LOG2) <= total;
         let mut acc = 0.0;
         let majority_median = bins

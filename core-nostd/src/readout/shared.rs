@@ -29,6 +29,13 @@ pub const REFRESH_US: u32 = 4_000;
 /// at 1 kHz. A brief gap in the evidence within a turn is not a new start.
 pub const RESUME_READINGS: u8 = 3;
 
+/// Readings (of [`REFRESH_US`] each) answering one sign in a row after which the direction of
+/// the motion counts as established ([`Confirmation::established`]): 100 ms at 1 kHz. Then a
+/// region's decodes of the other sign are timing errors, whatever its count (see
+/// [`Field::set_direction_established`]); before, the first decodes of a motion that has just
+/// started decide, which overshoot (a hover's turn after a pause).
+pub const ESTABLISHED_READINGS: u8 = 25;
+
 /// Whether a reading of the field that shows a rotation is output, from the readings before
 /// it (one rule for [`OutputGate`] and the f64 oracle's gate). A rotation read right after "no
 /// evidence" is held back until the next reading shows a rotation of the same sign, unless it
@@ -52,6 +59,8 @@ pub enum Confirmation {
     Answering {
         /// Its sign.
         negative: bool,
+        /// Readings in a row answering this sign (saturating).
+        readings: u8,
     },
     /// "No evidence" for `readings` readings after an answer of this sign.
     Paused {
@@ -66,16 +75,24 @@ impl Confirmation {
     /// Takes one reading (`Some(negative)`: a rotation of that sign; `None`: no evidence) and
     /// says whether it is output.
     pub fn read(&mut self, reading: Option<bool>) -> bool {
+        let answering = |negative, readings| Self::Answering { negative, readings };
         *self = match (*self, reading) {
-            (Self::Answering { .. }, Some(negative)) => Self::Answering { negative },
+            (
+                Self::Answering {
+                    negative: was,
+                    readings,
+                },
+                Some(negative),
+            ) if was == negative => answering(negative, readings.saturating_add(1)),
+            (Self::Answering { .. }, Some(negative)) => answering(negative, 1),
             (Self::Held { negative: held }, Some(negative)) if held == negative => {
-                Self::Answering { negative }
+                answering(negative, 1)
             }
             (Self::Paused { negative: was, .. }, Some(negative)) if was == negative => {
-                Self::Answering { negative }
+                answering(negative, 1)
             }
             (_, Some(negative)) => Self::Held { negative },
-            (Self::Answering { negative }, None) => Self::Paused {
+            (Self::Answering { negative, .. }, None) => Self::Paused {
                 negative,
                 readings: 1,
             },
@@ -88,6 +105,11 @@ impl Confirmation {
             (_, None) => Self::Waiting,
         };
         matches!(self, Self::Answering { .. })
+    }
+
+    /// Whether the last [`ESTABLISHED_READINGS`] readings in a row answered one sign.
+    pub fn established(&self) -> bool {
+        matches!(self, Self::Answering { readings, .. } if *readings >= ESTABLISHED_READINGS)
     }
 }
 
@@ -290,6 +312,7 @@ impl OutputGate {
         // The field is read every `refresh` outputs (its histograms change over tau_A, not
         // over one period); the outputs between repeat the last reading.
         if self.phase == 0 {
+            field.set_direction_established(self.confirmation.established());
             self.read(field.estimate());
         }
         self.phase += 1;
@@ -374,5 +397,28 @@ mod tests {
             gate.read(reading);
             assert_eq!(gate.said(), want, "reading {k}");
         }
+    }
+
+    #[test]
+    fn the_direction_is_established_after_answering_one_sign_for_its_readings() {
+        let mut c = Confirmation::Waiting;
+        // Held, then answering: established after ESTABLISHED_READINGS answers in a row.
+        c.read(Some(true));
+        for k in 1..=ESTABLISHED_READINGS {
+            assert!(!c.established(), "answer {k}");
+            c.read(Some(true));
+        }
+        assert!(c.established());
+        // A change of sign starts over; so does a gap, even one the answer resumes after.
+        c.read(Some(false));
+        assert!(!c.established());
+        for _ in 0..ESTABLISHED_READINGS {
+            c.read(Some(false));
+        }
+        assert!(c.established());
+        c.read(None);
+        assert!(!c.established());
+        c.read(Some(false));
+        assert!(c.read(Some(false)) && !c.established());
     }
 }
