@@ -31,7 +31,8 @@
 //!   vertically (the ground under forward motion) a horizontal unit suffers the aperture
 //!   problem and its decodes spread widely around the true horizontal flow, so such regions
 //!   count little. A region whose decodes agree in sign (at most a quarter the other way) and
-//!   that holds [`SETTLED_SAMPLES_Q16`] reads the median of its majority sign
+//!   that holds [`SETTLED_SAMPLES_Q16`] (any count once the readout has answered one direction
+//!   for 100 ms: [`Field::set_direction_established`]) reads the median of its majority sign
 //!   instead: there the other sign's decodes are timing errors, which would pull the signed
 //!   median towards slow rates (`majority_median`).
 //! - Per column band and side: the inverse-variance weighted least-squares intercept of the
@@ -125,7 +126,8 @@ pub const BINS: usize = 64;
 /// Decoded bursts (leaky, Q16) from which a region whose decodes agree in sign reads the
 /// median of that sign (`majority_median`); below, its signed median. Where motion has just
 /// started (a hover's turn after a pause) a region's first decodes agree in sign and
-/// overshoot; 32 is past them on the hover scenes.
+/// overshoot; 32 is past them on the hover scenes. Once the readout has answered one direction
+/// for 100 ms, the count no longer applies ([`Field::set_direction_established`]).
 pub const SETTLED_SAMPLES_Q16: u32 = 32 << 16;
 
 /// A region's decodes agree in sign when at most `2^-SETTLED_MINORITY_LOG2` of them (a
