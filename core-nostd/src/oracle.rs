@@ -1671,14 +1671,32 @@ impl OracleField {
                 (0..2 * COLS).any(|col| self.region_value(col * 2 * ROWS + row).is_some())
             });
             let bands = sides.map(|fits| fits.map(|fit| fit.is_some()));
-            if !crate::readout::field::spread_is_rotation(bands, above, self.support, self.coverage)
-            {
-                return None;
-            }
-            let [left, right] = sides;
-            for &(a, va) in left.iter().flatten() {
-                for &(c, vc) in right.iter().flatten() {
-                    values.push((0.5 * (a + c), 1.0 / (0.25 * (va + vc))));
+            if let Some(side) = crate::readout::field::lone_side(bands) {
+                // Texture on one side only: its bands alone, if they agree as a rotation's.
+                let fits = sides.get(side).map_or(&[][..], |f| &f[..]);
+                values.extend(fits.iter().flatten().map(|&(v, var)| (v, 1.0 / var)));
+                let lo = values.iter().map(|v| v.0).fold(f64::INFINITY, f64::min);
+                let hi = values.iter().map(|v| v.0).fold(f64::NEG_INFINITY, f64::max);
+                let spread = crate::readout::field::LONE_SIDE_SPREAD as f64;
+                let agrees =
+                    (lo > 0.0 || hi < 0.0) && (hi - lo) * spread <= (0.5 * (lo + hi)).abs();
+                if !crate::readout::field::above_is_rotation(above, self.coverage) || !agrees {
+                    return None;
+                }
+            } else {
+                if !crate::readout::field::spread_is_rotation(
+                    bands,
+                    above,
+                    self.support,
+                    self.coverage,
+                ) {
+                    return None;
+                }
+                let [left, right] = sides;
+                for &(a, va) in left.iter().flatten() {
+                    for &(c, vc) in right.iter().flatten() {
+                        values.push((0.5 * (a + c), 1.0 / (0.25 * (va + vc))));
+                    }
                 }
             }
         } else {
