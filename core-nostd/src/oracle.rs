@@ -1671,22 +1671,30 @@ impl OracleField {
                 (0..2 * COLS).any(|col| self.region_value(col * 2 * ROWS + row).is_some())
             });
             let bands = sides.map(|fits| fits.map(|fit| fit.is_some()));
+            // The fixed-point field's rules on the band values in its units (Q16 rad/s).
+            let range = |fits: &mut dyn Iterator<Item = &Option<(f64, f64)>>| {
+                fits.flatten()
+                    .fold((0usize, i64::MAX, i64::MIN), |(n, lo, hi), &(v, _)| {
+                        let q = (v * 65536.0) as i64;
+                        (n + 1, lo.min(q), hi.max(q))
+                    })
+            };
+            let above_ok = crate::readout::field::above_is_rotation(above, self.coverage) || {
+                let (n, lo, hi) = range(&mut sides.iter().flatten());
+                n == 2 * COLS && crate::readout::field::bands_agree(lo, hi)
+            };
             if let Some(side) = crate::readout::field::lone_side(bands) {
                 // Texture on one side only: its bands alone, if they agree as a rotation's.
                 let fits = sides.get(side).map_or(&[][..], |f| &f[..]);
-                values.extend(fits.iter().flatten().map(|&(v, var)| (v, 1.0 / var)));
-                let lo = values.iter().map(|v| v.0).fold(f64::INFINITY, f64::min);
-                let hi = values.iter().map(|v| v.0).fold(f64::NEG_INFINITY, f64::max);
-                let spread = crate::readout::field::LONE_SIDE_SPREAD as f64;
-                let agrees =
-                    (lo > 0.0 || hi < 0.0) && (hi - lo) * spread <= (0.5 * (lo + hi)).abs();
-                if !crate::readout::field::above_is_rotation(above, self.coverage) || !agrees {
+                let (_, lo, hi) = range(&mut fits.iter());
+                if !above_ok || !crate::readout::field::bands_agree(lo, hi) {
                     return None;
                 }
+                values.extend(fits.iter().flatten().map(|&(v, var)| (v, 1.0 / var)));
             } else {
                 if !crate::readout::field::spread_is_rotation(
                     bands,
-                    above,
+                    above_ok,
                     self.support,
                     self.coverage,
                 ) {
