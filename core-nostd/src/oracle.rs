@@ -444,7 +444,8 @@ pub struct OracleYaw<L: crate::layout::Layout> {
 
 /// [`crate::readout::stride_choice`] in f64: the paper's units' decodes of both strides per
 /// region and sign, decayed exactly each period; the near units answer while their sign
-/// agreement is at least the layout's.
+/// agreement is at least the layout's, the choice changing when the other leads by
+/// [`crate::readout::stride_choice::SWITCH_MARGIN`].
 struct OracleStrideChoice {
     /// Decodes `[near, layout][region][negative, positive]`.
     counts: [[[f64; 2]; crate::readout::field::REGIONS]; 2],
@@ -499,7 +500,12 @@ impl OracleStrideChoice {
         if self.settled >= f64::from(SETTLE_US) - 0.5 {
             let (near, layout) = (self.agreement(0), self.agreement(1));
             if near > 0.0 || layout > 0.0 {
-                self.near = near >= layout;
+                let margin = f64::from(crate::readout::stride_choice::SWITCH_MARGIN);
+                self.near = if self.near {
+                    layout <= near + margin
+                } else {
+                    near >= layout + margin
+                };
             }
         }
         let keep = (-period / f64::from(MEMORY_US)).exp();
