@@ -679,6 +679,10 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
                 self.stride.add(is_near, region, positive);
             }
         }
+        if self.gate.warmup_outputs > 0 {
+            // The warm-up's bursts time the pixels waking up (the fixed-point readout's rule).
+            return;
+        }
         let (decoded, stride) = if self.stride.near {
             (near, 1.0)
         } else {

@@ -237,3 +237,36 @@ fn no_events_means_stale_and_zero() {
         .iter()
         .all(|s| s.flags & flags::STALE != 0 && s.yaw_rate == 0));
 }
+
+/// Over the warm-up the bursts time the order in which pixels woke up: none is decoded into the
+/// field, while the outputs say "no evidence"; after it they are.
+#[test]
+fn bursts_in_the_warm_up_are_not_decoded() {
+    let kernel = Kernel::DEFAULT;
+    let layout = Dense::new(W, H, 2).unwrap();
+    let mut cells = vec![Cell::default(); layout.cell_count()];
+    let net = Network::new(
+        &kernel,
+        layout,
+        NetState::cells(&mut cells),
+        InputFilter::Onsets { gap_us: 50_000 },
+    )
+    .unwrap();
+    let c = U16F16::from_num(f64::from(W) / 2.0 - 0.5);
+    let cal = Calibration::new(U16F16::from_num(F), c, U16F16::from_num(f64::from(H) / 2.0));
+    let readout = Calibrated::new(&kernel, &layout, cal);
+    let mut p = Pipeline::new(net, readout, 1000);
+    let mut out = Vec::new();
+    // Edges 3-12 px apart at 300 px/s cross the stride in under 7 ms: bursts from the start.
+    let evs = events(W, H, -300.0, 1, 0.06);
+    let warm_end = evs.first().map_or(0, |e| e.t_us) + calibrated::WARMUP_US - 1_000;
+    for &ev in evs.iter().filter(|e| e.t_us < warm_end) {
+        p.event(ev, &mut |s| out.push(s));
+    }
+    assert!(!out.is_empty() && out.iter().all(|s| s.flags & flags::NO_EVIDENCE != 0));
+    assert_eq!(p.readout().samples, 0, "decoded in the warm-up");
+    for &ev in evs.iter().filter(|e| e.t_us >= warm_end) {
+        p.event(ev, &mut |s| out.push(s));
+    }
+    assert!(p.readout().samples > 0, "nothing decoded after the warm-up");
+}

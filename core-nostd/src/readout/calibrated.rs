@@ -39,6 +39,13 @@
 //! Decoded rates go to the [`field`](super::field) estimator: regions mirrored about the
 //! principal point cancel forward translation, pitch and roll; the rotation must hold in
 //! several column bands before it is reported (see its module documentation for the model).
+//!
+//! # Warm-up
+//! Over the first [`WARMUP_US`] the outputs say "no evidence", and bursts are not decoded into
+//! the field (as in the spike readout): every pixel's first event looks like an onset, so the
+//! first bursts time the order in which pixels woke up, not edges crossing, and the field's 10 ms
+//! memory carried them into the first answers (a drone flying straight read -1.2 rad/s at 21
+//! ms). The stride choice still counts them: it changes nothing before its own settling time.
 
 use fixed::types::{I16F16, U16F16};
 
@@ -322,6 +329,9 @@ impl NetSink for Calibrated {
             Stride::Near => near,
             Stride::Layout => far,
         };
+        if self.gate.warming_up() {
+            return;
+        }
         let [tau_fast, _] = self.log2_tau;
         let fast = fast.and_then(|(drive, positive)| {
             self.decode_dt_below(drive, ceiling, tau_fast)

@@ -327,6 +327,12 @@ impl OutputGate {
         self.said()
     }
 
+    /// Whether the outputs are still in the warm-up ([`WARMUP_US`] from the first): what the
+    /// network triggers now times the order in which pixels woke up.
+    pub fn warming_up(&self) -> bool {
+        self.warmup_outputs > 0
+    }
+
     /// What the outputs say until the next reading.
     fn said(&self) -> (I16F16, u8) {
         match self.confirmation {
