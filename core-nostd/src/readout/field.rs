@@ -184,12 +184,12 @@ const MAX_WEIGHT: u64 = 1 << 20;
 const SLOPE_PRIOR: i64 = ((WEIGHT_SCALE >> 34) << 12) as i64;
 
 /// Column bands one side needs, when the other side has a value in none, to answer alone
-/// ([`lone_side`]): texture on one side only (a skyline with sky on one side, a wall beside a
+/// (`lone_side`): texture on one side only (a skyline with sky on one side, a wall beside a
 /// drone).
 pub const LONE_SIDE_BANDS: usize = 3;
 
 /// Column band values agree as a rotation's when they lie within `1 / BAND_SPREAD` of their
-/// mid-range of each other, one sign ([`bands_agree`]). A rotation gives every band the same
+/// mid-range of each other, one sign (`bands_agree`). A rotation gives every band the same
 /// rate. What is odd in `X` (forward translation), where the mirrored side cannot cancel it,
 /// shows as a trend across the bands (for scenery at one depth `Z`, the translation term
 /// `X T_z / (Z (1 + X²))` grows about sixfold from the inner band to the outer one); so does an
