@@ -1701,15 +1701,14 @@ impl OracleField {
                     return None;
                 }
                 values.extend(fits.iter().flatten().map(|&(v, var)| (v, 1.0 / var)));
+            } else if !crate::readout::field::spread_is_rotation(
+                bands,
+                above_ok,
+                self.support,
+                self.coverage,
+            ) {
+                return None;
             } else {
-                if !crate::readout::field::spread_is_rotation(
-                    bands,
-                    above_ok,
-                    self.support,
-                    self.coverage,
-                ) {
-                    return None;
-                }
                 let [left, right] = sides;
                 for &(a, va) in left.iter().flatten() {
                     for &(c, vc) in right.iter().flatten() {

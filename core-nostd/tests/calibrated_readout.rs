@@ -198,28 +198,36 @@ fn the_first_outputs_say_no_evidence() {
         .any(|s| s.flags & flags::NO_EVIDENCE == 0));
 }
 
+/// A calibrated pipeline at 1 kHz over `layout` (onset filter, 50 ms gap), its cells in
+/// `cells`, for a camera with focal length `f` and principal point `(cx, cy)` (px).
+fn calibrated_pipeline<'a>(
+    kernel: &'a Kernel,
+    layout: Dense,
+    cells: &'a mut [Cell],
+    (f, cx, cy): (f64, f64, f64),
+) -> Pipeline<'a, Dense, Calibrated> {
+    let net = Network::new(
+        kernel,
+        layout,
+        NetState::cells(cells),
+        InputFilter::Onsets { gap_us: 50_000 },
+    )
+    .unwrap();
+    let cal = Calibration::new(
+        U16F16::from_num(f),
+        U16F16::from_num(cx),
+        U16F16::from_num(cy),
+    );
+    let readout = Calibrated::new(kernel, &layout, cal);
+    Pipeline::new(net, readout, 1000)
+}
+
 #[test]
 fn no_events_means_stale_and_zero() {
     let kernel = Kernel::DEFAULT;
     let layout = Dense::new(16, 2, 2).unwrap();
     let mut cells = vec![Cell::default(); layout.cell_count()];
-    let net = Network::new(
-        &kernel,
-        layout,
-        NetState::cells(&mut cells),
-        InputFilter::Onsets { gap_us: 50_000 },
-    )
-    .unwrap();
-    let readout = Calibrated::new(
-        &kernel,
-        &layout,
-        Calibration::new(
-            U16F16::from_num(200),
-            U16F16::from_num(8),
-            U16F16::from_num(0.5),
-        ),
-    );
-    let mut p = Pipeline::new(net, readout, 1000);
+    let mut p = calibrated_pipeline(&kernel, layout, &mut cells, (200.0, 8.0, 0.5));
     let mut out = Vec::new();
     p.event(
         Event {
@@ -245,17 +253,8 @@ fn bursts_in_the_warm_up_are_not_decoded() {
     let kernel = Kernel::DEFAULT;
     let layout = Dense::new(W, H, 2).unwrap();
     let mut cells = vec![Cell::default(); layout.cell_count()];
-    let net = Network::new(
-        &kernel,
-        layout,
-        NetState::cells(&mut cells),
-        InputFilter::Onsets { gap_us: 50_000 },
-    )
-    .unwrap();
-    let c = U16F16::from_num(f64::from(W) / 2.0 - 0.5);
-    let cal = Calibration::new(U16F16::from_num(F), c, U16F16::from_num(f64::from(H) / 2.0));
-    let readout = Calibrated::new(&kernel, &layout, cal);
-    let mut p = Pipeline::new(net, readout, 1000);
+    let centre = (f64::from(W) / 2.0 - 0.5, f64::from(H) / 2.0);
+    let mut p = calibrated_pipeline(&kernel, layout, &mut cells, (F, centre.0, centre.1));
     let mut out = Vec::new();
     // Edges 3-12 px apart at 300 px/s cross the stride in under 7 ms: bursts from the start.
     let evs = events(W, H, -300.0, 1, 0.06);

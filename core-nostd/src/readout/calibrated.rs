@@ -44,8 +44,8 @@
 //! Over the first [`WARMUP_US`] the outputs say "no evidence", and bursts are not decoded into
 //! the field (as in the spike readout): every pixel's first event looks like an onset, so the
 //! first bursts time the order in which pixels woke up, not edges crossing, and the field's 10 ms
-//! memory carried them into the first answers (a drone flying straight read -1.2 rad/s at 21
-//! ms). The stride choice still counts them: it changes nothing before its own settling time.
+//! memory carried them into the first answers (a drone flying straight read -1.2 rad/s over
+//! 20-40 ms). The stride choice still counts them: it changes nothing before its own settling time.
 
 use fixed::types::{I16F16, U16F16};
 

@@ -179,6 +179,12 @@ const WEIGHT_SCALE: u64 = 1 << 36;
 /// See [`WEIGHT_SCALE`].
 const MAX_WEIGHT: u64 = 1 << 20;
 
+/// The weight of a column band's value (or of a pair's mean) with variance `var` (Q32) in the
+/// field's weighted median: `WEIGHT_SCALE / var`, at least 1.
+fn band_weight(var: u64) -> u64 {
+    (WEIGHT_SCALE / var.max(1)).max(1)
+}
+
 /// Prior information on the slopes of a column's fit (weight x Y² in Q12): a slope of 2 rad/s
 /// per unit of `Y` is one standard deviation.
 const SLOPE_PRIOR: i64 = ((WEIGHT_SCALE >> 34) << 12) as i64;
@@ -192,7 +198,7 @@ pub const LONE_SIDE_BANDS: usize = 3;
 /// mid-range of each other, one sign (`bands_agree`). A rotation gives every band the same
 /// rate. What is odd in `X` (forward translation), where the mirrored side cannot cancel it,
 /// shows as a trend across the bands (for scenery at one depth `Z`, the translation term
-/// `X T_z / (Z (1 + X²))` grows about sixfold from the inner band to the outer one); so does an
+/// `X T_z / (Z (1 + X²))` grows about fivefold from the inner band to the outer one); so does an
 /// object crossing the view at a speed of its own: its rate-equivalent falls as `1 / (1 + X²)`,
 /// by about 30 % from the inner bands to the outer ones on a DAVIS346.
 pub const BAND_SPREAD: i64 = 5;
@@ -756,7 +762,7 @@ impl Field {
                 (None, None) => None,
             };
             if let (Some((v, var)), Some(slot)) = (est, values.get_mut(n)) {
-                *slot = (v, (WEIGHT_SCALE / var.max(1)).max(1));
+                *slot = (v, band_weight(var));
                 n += 1;
             }
         }
@@ -806,7 +812,7 @@ impl Field {
             let mut values = [(0i64, 0u64); COL_BANDS];
             let mut n = 0usize;
             for (&(v, var), slot) in fits.iter().flatten().zip(values.iter_mut()) {
-                *slot = (v, (WEIGHT_SCALE / var.max(1)).max(1));
+                *slot = (v, band_weight(var));
                 n += 1;
             }
             return weighted_median(values.get(..n).unwrap_or(&[]));
@@ -820,7 +826,7 @@ impl Field {
         for &(a, va) in left.iter().flatten() {
             for &(b, vb) in right.iter().flatten() {
                 if let Some(slot) = values.get_mut(n) {
-                    *slot = ((a + b) / 2, (WEIGHT_SCALE / ((va + vb) / 4).max(1)).max(1));
+                    *slot = ((a + b) / 2, band_weight((va + vb) / 4));
                     n += 1;
                 }
             }
@@ -1501,8 +1507,8 @@ mod tests {
         }
         // Every column band moves below the principal row and in the listed rows above it, as
         // an object would ([`object_rate_milli`]: a rotation's one rate across the whole width
-        // answers without the top band). Principal row 100 (bands of 33 rows above): row 90 lies in the first band,
-        // row 50 in the second, row 20 in the top one; principal row 110 (bands of 37 rows
+        // answers without the top band). Principal row 100 (bands of 33 rows above): row 90
+        // lies in the first band, row 50 in the second, row 20 in the top one; principal row 110 (bands of 37 rows
         // above, where bands mirrored from the 150 rows below were 50 rows and the top one a
         // 10-row sliver): row 80 in the first band, row 50 in the second, row 30 in the top
         // one. The top band with one more makes a rotation; with the principal point at the

@@ -23,8 +23,9 @@
 //! the paper's units' decodes of both strides count, per region and sign, leaky over
 //! [`MEMORY_US`]; the near units are decoded while their agreement `Σ max(0, (P - N)² / (P + N)
 //! - RANDOM_AGREEMENT)` (P, N: decodes per sign in a region) is at least the layout's, else the
-//! layout's units; the choice changes only when the other stride leads by [`SWITCH_MARGIN`]. Only onsets on one row in [`COUNT_ROWS`] are counted (elsewhere the stride
-//! not chosen is not read at all). Over the first [`SETTLE_US`], and while neither stride agrees at all, the
+//! layout's units; the choice changes only when the other stride leads by [`SWITCH_MARGIN`].
+//! Only onsets on one row in [`COUNT_ROWS`] are counted (elsewhere the stride not chosen is
+//! not read at all). Over the first [`SETTLE_US`], and while neither stride agrees at all, the
 //! choice stays as it was (at the start: near, on layouts that have near units,
 //! [`super::calibrated::has_near`]).
 
@@ -243,13 +244,8 @@ mod tests {
         // A region of n one-signed decodes agrees by n - RANDOM_AGREEMENT: the near units
         // lead by half the margin, then by the margin and a half.
         let layout = (c.agreement_q8(Stride::Layout) >> 8) as u32;
-        decodes(
-            &mut c,
-            Stride::Near,
-            1,
-            layout + 2 + SWITCH_MARGIN / 2,
-            layout + 6,
-        );
+        let n = layout + 2 + SWITCH_MARGIN / 2;
+        decodes(&mut c, Stride::Near, 1, n, n);
         look_after(&mut c, 1_000);
         assert_eq!(c.choice(), Stride::Layout, "a lead below the margin");
         decodes(
