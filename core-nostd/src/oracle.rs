@@ -1689,10 +1689,20 @@ impl OracleField {
                         (n + 1, lo.min(q), hi.max(q))
                     })
             };
-            let above_ok = crate::readout::field::above_is_rotation(above, self.coverage) || {
-                let (n, lo, hi) = range(&mut sides.iter().flatten());
-                n == 2 * COLS && crate::readout::field::bands_agree(lo, hi)
-            };
+            // Column band sides with a value above the principal row.
+            let upper_band_sides = (0..2 * COLS)
+                .filter(|&col| {
+                    (0..ROWS).any(|row| self.region_value(col * 2 * ROWS + row).is_some())
+                })
+                .count();
+            let (n, lo, hi) = range(&mut sides.iter().flatten());
+            let above_ok = crate::readout::field::above_is_rotation(above, self.coverage)
+                || (n == 2 * COLS && crate::readout::field::bands_agree(lo, hi))
+                || crate::readout::field::wide_upper_motion(
+                    above,
+                    upper_band_sides,
+                    sides.map(|fits| fits.map(|fit| fit.map(|(v, _)| (v * 65536.0) as i64))),
+                );
             if let Some(side) = crate::readout::field::lone_side(bands) {
                 // Texture on one side only: its bands alone, if they agree as a rotation's.
                 let fits = sides.get(side).map_or(&[][..], |f| &f[..]);

@@ -68,7 +68,11 @@
 //!   column band of the view has a value and they all agree ([`BAND_SPREAD`]): only a
 //!   rotation moves the whole width at one rate (an object at one depth moving on its own
 //!   reads about 30 % slower in the outer bands of a DAVIS346's view than in the inner ones),
-//!   so a turn under a low skyline (sky in the top band) still answers.
+//!   so a turn under a low skyline (sky in the top band) still answers. Nor is the top band
+//!   needed when two row bands above have values in at least [`WIDE_UPPER_BAND_SIDES`] of the
+//!   eight column band sides, all of one sign, the outer bands not slower than the inner ones
+//!   ([`WIDE_FALLOFF_TENTHS`]): people walking past move a few column bands at a time, and a
+//!   scene at half the usual contrast fires no events in its faint upper scenery.
 //! - When more than a quarter of that weight ([`SPLIT_SHARE`]) says the other direction, the
 //!   field does not know which way the camera turns: "no rotation evidence" (just after a
 //!   reversal; straight driving past scenery at different depths either side).
@@ -188,6 +192,19 @@ fn band_weight(var: u64) -> u64 {
 /// Prior information on the slopes of a column's fit (weight x Y² in Q12): a slope of 2 rad/s
 /// per unit of `Y` is one standard deviation.
 const SLOPE_PRIOR: i64 = ((WEIGHT_SCALE >> 34) << 12) as i64;
+
+/// Column band sides (of `2 x` [`COL_BANDS`]) with a value above the principal row that let
+/// the field answer without one in the top row band, when at least [`ABOVE_SUPPORT`] row bands
+/// above have values and every column band value has one sign (`wide_upper_motion`). Objects
+/// crossing a static camera's view moved at most 6 of the 8 at once (two or three people 2-3 m
+/// away, `--regime objects` seeds 51 and 52), a car passing below the horizon none; a rotation
+/// seen at half the usual texture contrast, whose top row band fires no events, 7-8.
+pub const WIDE_UPPER_BAND_SIDES: usize = 7;
+
+/// In `wide_upper_motion`, the outer half of the column bands must move at least this many
+/// tenths of the inner half's mean rate: an object at one depth moving on its own reads about
+/// 30 % slower in the outer bands of a DAVIS346's view, a rotation the same in all.
+pub const WIDE_FALLOFF_TENTHS: i64 = 9;
 
 /// Column bands one side needs, when the other side has a value in none, to answer alone
 /// (`lone_side`): texture on one side only (a skyline with sky on one side, a wall beside a
@@ -793,15 +810,33 @@ impl Field {
                 })
             })
         });
+        let upper_band_sides = (0..2)
+            .map(|side| {
+                (0..COL_BANDS)
+                    .filter(|&band| {
+                        (0..ROW_BANDS).any(|row| {
+                            regions
+                                .get(region_index(side, band, 0, row))
+                                .is_some_and(Option::is_some)
+                        })
+                    })
+                    .count()
+            })
+            .sum();
         let bands = sides.map(|fits| fits.map(|fit| fit.is_some()));
+        let (n, lo, hi) = value_range(sides.iter().flatten());
         // The rows above the principal row move as a rotation's do, or else every column band
-        // of the view moves at one rate: only a rotation does that (an object at one depth
-        // reads about 30 % slower in the outer bands), whether or not the top row band
-        // sees texture (a low skyline under a drone).
-        let above_ok = above_is_rotation(above, self.coverage) || {
-            let (n, lo, hi) = value_range(sides.iter().flatten());
-            n == 2 * COL_BANDS && bands_agree(lo, hi)
-        };
+        // of the view moves at one rate (only a rotation does that: an object at one depth
+        // reads about 30 % slower in the outer bands), or nearly the whole width above the
+        // principal row moves one way: whether or not the top row band sees texture (a low
+        // skyline under a drone, a faint one).
+        let above_ok = above_is_rotation(above, self.coverage)
+            || (n == 2 * COL_BANDS && bands_agree(lo, hi))
+            || wide_upper_motion(
+                above,
+                upper_band_sides,
+                sides.map(|fits| fits.map(|fit| fit.map(|(v, _)| v))),
+            );
         if let Some(side) = lone_side(bands) {
             // Texture on one side only: its bands alone, if they agree as a rotation's.
             let fits = sides.get(side).map_or(&[][..], |f| &f[..]);
@@ -1052,6 +1087,53 @@ pub(crate) fn above_is_rotation(above: [bool; ROW_BANDS], coverage: Coverage) ->
     let above = above.get(..reach).unwrap_or(&[]);
     let above_need = (ABOVE_SUPPORT as usize).min(reach);
     above.iter().filter(|&&f| f).count() >= above_need && above.last().copied().unwrap_or(true)
+}
+
+/// Whether the motion above the principal row is as wide as only a rotation's: values in at
+/// least [`ABOVE_SUPPORT`] row bands above it (`above[row]`) and in at least
+/// [`WIDE_UPPER_BAND_SIDES`] column band sides there (`upper_band_sides`), and column band
+/// values (`values[side][band]`, any unit) of one sign whose outer half is not slower than
+/// their inner half ([`WIDE_FALLOFF_TENTHS`]). Where the top row band sees no texture (sky, or
+/// scenery too faint to fire at half the usual contrast), a rotation still moves the rows
+/// below it across the whole width at one rate; people walking past move a few column bands
+/// at a time, and a bus passing close by, at one depth, reads about 30 % slower in the outer
+/// bands.
+pub(crate) fn wide_upper_motion(
+    above: [bool; ROW_BANDS],
+    upper_band_sides: usize,
+    values: [[Option<i64>; COL_BANDS]; 2],
+) -> bool {
+    if above.iter().filter(|&&f| f).count() < ABOVE_SUPPORT as usize
+        || upper_band_sides < WIDE_UPPER_BAND_SIDES
+    {
+        return false;
+    }
+    let (n, lo, hi) = values
+        .iter()
+        .flatten()
+        .flatten()
+        .fold((0usize, i64::MAX, i64::MIN), |(n, lo, hi), &v| {
+            (n + 1, lo.min(v), hi.max(v))
+        });
+    // (count, sum of |value|) of the inner and the outer half of the bands.
+    let mut halves = [(0i64, 0i64); 2];
+    for side in &values {
+        for (band, v) in side.iter().enumerate() {
+            if let (Some(v), Some(h)) = (v, halves.get_mut(2 * band / COL_BANDS)) {
+                h.0 += 1;
+                h.1 = h.1.saturating_add(v.saturating_abs());
+            }
+        }
+    }
+    let [(n_in, sum_in), (n_out, sum_out)] = halves;
+    n > 0
+        && (lo > 0 || hi < 0)
+        && n_in > 0
+        && n_out > 0
+        && sum_out.saturating_mul(10).saturating_mul(n_in)
+            >= sum_in
+                .saturating_mul(WIDE_FALLOFF_TENTHS)
+                .saturating_mul(n_out)
 }
 
 /// The side (0: left) that has values in at least [`LONE_SIDE_BANDS`] column bands while the
@@ -1465,6 +1547,59 @@ mod tests {
             );
             if let Some(v) = v {
                 assert!((v - 0.3).abs() < 0.06, "{v}");
+            }
+        }
+    }
+
+    #[test]
+    fn wide_motion_without_the_top_row_band_is_a_rotation() {
+        // Row bands 0 and 1 above the principal row move (the top one sees no texture, as a
+        // faint skyline at half the usual contrast), in the listed column band sides; the
+        // band values scatter by more than a fifth (few decodes), one sign.
+        let scattered = |side: usize, band: usize| [300, 240, 330, 270][(band + side) % 4];
+        let all: [(usize, usize); 2 * COL_BANDS] = core::array::from_fn(|i| (i % 2, i / 2));
+        let object = |_: usize, band: usize| object_rate_milli(band) as i64;
+        let wide = |side, band| scattered(side, band);
+        for (sides, rate, answers) in [
+            // Seven of the eight band sides at one rate, give or take: a rotation.
+            (&all[1..], &wide as &dyn Fn(usize, usize) -> i64, true),
+            (&all[..], &wide, true),
+            // Six: as wide as people walking past have moved.
+            (&all[2..], &wide, false),
+            // An object at one depth as wide as the view (a bus passing close by): its rate
+            // falls as 1 / (1 + X²) outwards.
+            (&all[..], &object, false),
+            (&all[1..], &object, false),
+            // Both signs: not one rotation.
+            (
+                &all[1..],
+                &|side, band| {
+                    if band == 3 {
+                        -wide(side, band)
+                    } else {
+                        wide(side, band)
+                    }
+                },
+                false,
+            ),
+        ] {
+            let mut f = field();
+            for _ in 0..30 {
+                for &(side, band) in sides {
+                    for row in 0..2 {
+                        let (x, y) = pixel(side, band, true, row);
+                        let r = rate(side, band);
+                        for _ in 0..2 {
+                            f.add(Population::Fast, x, y, log2_rate(r.unsigned_abs()), r > 0);
+                        }
+                    }
+                }
+                f.age();
+            }
+            let v = rad_s(f.estimate());
+            assert_eq!(v.is_some(), answers, "{} band sides: {v:?}", sides.len());
+            if let Some(v) = v {
+                assert!((v - 0.285).abs() < 0.05, "{v}");
             }
         }
     }
