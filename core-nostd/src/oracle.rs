@@ -1676,53 +1676,25 @@ impl OracleField {
             let sides: [[Option<(f64, f64)>; COLS]; 2] = core::array::from_fn(|side| {
                 core::array::from_fn(|band| self.column_intercept(side, band))
             });
-            // Row bands above the principal row (v = 0) with a value in some region.
-            let above = core::array::from_fn(|row| {
-                (0..2 * COLS).any(|col| self.region_value(col * 2 * ROWS + row).is_some())
-            });
-            let bands = sides.map(|fits| fits.map(|fit| fit.is_some()));
-            // The fixed-point field's rules on the band values in its units (Q16 rad/s).
-            let range = |fits: &mut dyn Iterator<Item = &Option<(f64, f64)>>| {
-                fits.flatten()
-                    .fold((0usize, i64::MAX, i64::MIN), |(n, lo, hi), &(v, _)| {
-                        let q = (v * 65536.0) as i64;
-                        (n + 1, lo.min(q), hi.max(q))
-                    })
-            };
-            // Column band sides with a value above the principal row.
-            let upper_band_sides = (0..2 * COLS)
-                .filter(|&col| {
-                    (0..ROWS).any(|row| self.region_value(col * 2 * ROWS + row).is_some())
-                })
-                .count();
-            let (n, lo, hi) = range(&mut sides.iter().flatten());
-            let above_ok = crate::readout::field::above_is_rotation(above, self.coverage)
-                || (n == 2 * COLS && crate::readout::field::bands_agree(lo, hi))
-                || crate::readout::field::wide_upper_motion(
-                    above,
-                    upper_band_sides,
-                    sides.map(|fits| fits.map(|fit| fit.map(|(v, _)| (v * 65536.0) as i64))),
-                );
-            if let Some(side) = crate::readout::field::lone_side(bands) {
-                // Texture on one side only: its bands alone, if they agree as a rotation's.
-                let fits = sides.get(side).map_or(&[][..], |f| &f[..]);
-                let (_, lo, hi) = range(&mut fits.iter());
-                if !above_ok || !crate::readout::field::bands_agree(lo, hi) {
-                    return None;
+            // The fixed-point field's rule, on the band values in its units (Q16 rad/s) and the
+            // regions above the principal row (v = 0).
+            use crate::readout::field::{band_choice, upper_coverage, BandChoice};
+            let upper =
+                upper_coverage(|col, row| self.region_value(col * 2 * ROWS + row).is_some());
+            let q16 = sides.map(|fits| fits.map(|fit| fit.map(|(v, _)| (v * 65536.0) as i64)));
+            match band_choice(&q16, upper, self.support, self.coverage) {
+                BandChoice::Nothing => return None,
+                BandChoice::Side(side) => {
+                    // Texture on one side only: its bands alone.
+                    let fits = sides.get(side).map_or(&[][..], |f| &f[..]);
+                    values.extend(fits.iter().flatten().map(|&(v, var)| (v, 1.0 / var)));
                 }
-                values.extend(fits.iter().flatten().map(|&(v, var)| (v, 1.0 / var)));
-            } else if !crate::readout::field::spread_is_rotation(
-                bands,
-                above_ok,
-                self.support,
-                self.coverage,
-            ) {
-                return None;
-            } else {
-                let [left, right] = sides;
-                for &(a, va) in left.iter().flatten() {
-                    for &(c, vc) in right.iter().flatten() {
-                        values.push((0.5 * (a + c), 1.0 / (0.25 * (va + vc))));
+                BandChoice::Pairs => {
+                    let [left, right] = sides;
+                    for &(a, va) in left.iter().flatten() {
+                        for &(c, vc) in right.iter().flatten() {
+                            values.push((0.5 * (a + c), 1.0 / (0.25 * (va + vc))));
+                        }
                     }
                 }
             }

@@ -72,7 +72,7 @@
 //!   needed when two row bands above have values in at least [`WIDE_UPPER_BAND_SIDES`] of the
 //!   eight column band sides, all of one sign, the outer bands not slower than the inner ones
 //!   ([`WIDE_FALLOFF_TENTHS`]): people walking past move a few column bands at a time, and a
-//!   scene at half the usual contrast fires no events in its faint upper scenery.
+//!   scene at half the usual contrast gets almost no decodes from its faint upper scenery.
 //! - When more than a quarter of that weight ([`SPLIT_SHARE`]) says the other direction, the
 //!   field does not know which way the camera turns: "no rotation evidence" (just after a
 //!   reversal; straight driving past scenery at different depths either side).
@@ -195,10 +195,10 @@ const SLOPE_PRIOR: i64 = ((WEIGHT_SCALE >> 34) << 12) as i64;
 
 /// Column band sides (of `2 x` [`COL_BANDS`]) with a value above the principal row that let
 /// the field answer without one in the top row band, when at least [`ABOVE_SUPPORT`] row bands
-/// above have values and every column band value has one sign (`wide_upper_motion`). Objects
-/// crossing a static camera's view moved at most 6 of the 8 at once (two or three people 2-3 m
-/// away, `--regime objects` seeds 51 and 52), a car passing below the horizon none; a rotation
-/// seen at half the usual texture contrast, whose top row band fires no events, 7-8.
+/// above have values and every column band value has one sign (`wide_upper_motion`). People
+/// walking past a static camera 2-3 m away moved up to 6 of the 8 at once (`--regime objects`
+/// seeds 51 and 52), a car passing below the horizon none; a rotation
+/// seen at half the usual texture contrast, whose top row band gets almost no decodes, 7-8.
 pub const WIDE_UPPER_BAND_SIDES: usize = 7;
 
 /// In `wide_upper_motion`, the outer half of the column bands must move at least this many
@@ -801,59 +801,25 @@ impl Field {
         let sides: [[Option<(i64, u64)>; COL_BANDS]; 2] = core::array::from_fn(|side| {
             core::array::from_fn(|band| self.column_intercept(regions, side, band))
         });
-        let above = core::array::from_fn(|row| {
-            (0..2).any(|side| {
-                (0..COL_BANDS).any(|band| {
-                    regions
-                        .get(region_index(side, band, 0, row))
-                        .is_some_and(Option::is_some)
-                })
-            })
+        let upper = upper_coverage(|col, row| {
+            regions
+                .get(region_index(col % 2, col / 2, 0, row))
+                .is_some_and(Option::is_some)
         });
-        let upper_band_sides = (0..2)
-            .map(|side| {
-                (0..COL_BANDS)
-                    .filter(|&band| {
-                        (0..ROW_BANDS).any(|row| {
-                            regions
-                                .get(region_index(side, band, 0, row))
-                                .is_some_and(Option::is_some)
-                        })
-                    })
-                    .count()
-            })
-            .sum();
-        let bands = sides.map(|fits| fits.map(|fit| fit.is_some()));
-        let (n, lo, hi) = value_range(sides.iter().flatten());
-        // The rows above the principal row move as a rotation's do, or else every column band
-        // of the view moves at one rate (only a rotation does that: an object at one depth
-        // reads about 30 % slower in the outer bands), or nearly the whole width above the
-        // principal row moves one way: whether or not the top row band sees texture (a low
-        // skyline under a drone, a faint one).
-        let above_ok = above_is_rotation(above, self.coverage)
-            || (n == 2 * COL_BANDS && bands_agree(lo, hi))
-            || wide_upper_motion(
-                above,
-                upper_band_sides,
-                sides.map(|fits| fits.map(|fit| fit.map(|(v, _)| v))),
-            );
-        if let Some(side) = lone_side(bands) {
-            // Texture on one side only: its bands alone, if they agree as a rotation's.
-            let fits = sides.get(side).map_or(&[][..], |f| &f[..]);
-            let (_, lo, hi) = value_range(fits.iter());
-            if !above_ok || !bands_agree(lo, hi) {
-                return FieldEstimate::NoEvidence;
+        let values = sides.map(|fits| fits.map(|fit| fit.map(|(v, _)| v)));
+        match band_choice(&values, upper, self.settings.support, self.coverage) {
+            BandChoice::Nothing => return FieldEstimate::NoEvidence,
+            BandChoice::Side(side) => {
+                let mut values = [(0i64, 0u64); COL_BANDS];
+                let mut n = 0usize;
+                let fits = sides.get(side).map_or(&[][..], |f| &f[..]);
+                for (&(v, var), slot) in fits.iter().flatten().zip(values.iter_mut()) {
+                    *slot = (v, band_weight(var));
+                    n += 1;
+                }
+                return weighted_median(values.get(..n).unwrap_or(&[]));
             }
-            let mut values = [(0i64, 0u64); COL_BANDS];
-            let mut n = 0usize;
-            for (&(v, var), slot) in fits.iter().flatten().zip(values.iter_mut()) {
-                *slot = (v, band_weight(var));
-                n += 1;
-            }
-            return weighted_median(values.get(..n).unwrap_or(&[]));
-        }
-        if !spread_is_rotation(bands, above_ok, self.settings.support, self.coverage) {
-            return FieldEstimate::NoEvidence;
+            BandChoice::Pairs => {}
         }
         let [left, right] = sides;
         let mut values = [(0i64, 0u64); COL_BANDS * COL_BANDS];
@@ -1044,45 +1010,90 @@ fn majority_median([neg, pos]: [&[u32; BINS]; 2], [n, p]: [u64; 2], signed: i64)
     None
 }
 
-/// Whether a field's values are spread over the view as a rotation's are (the rule of
-/// [`Field`] and of the f64 oracle's field): a value in some column band on each side of the
-/// principal point (what is odd in `X` must cancel), and either `support` mirrored bands (at
-/// most the paired bands the layout covers) or at least half of the mirrored bands' sides;
-/// and `above_ok`: the rows above the principal row are spread as a rotation's
-/// ([`above_is_rotation`]) or every band agrees. `bands[side][band]`: that band's side has a
-/// value.
-pub(crate) fn spread_is_rotation(
-    bands: [[bool; COL_BANDS]; 2],
-    above_ok: bool,
+/// Which column band values a field's estimate is made of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum BandChoice {
+    /// None: no rotation evidence.
+    Nothing,
+    /// This side's bands alone (0: left): the other side has no value.
+    Side(usize),
+    /// Every left band's value paired with every right band's.
+    Pairs,
+}
+
+/// The rule of [`Field`] and of the f64 oracle's field on the column band values
+/// (`values[side][band]`, Q16 rad/s) and the regions above the principal row (`upper`, from
+/// [`upper_coverage`]); see the module documentation, "The estimator". The rows above the
+/// principal row must move as a rotation's (`above_is_rotation`), or every column band side
+/// at one rate (an object at one depth reads about 30 % slower in the outer bands), or nearly
+/// the whole width above the principal row one way (`wide_upper_motion`). Then a side with
+/// values alone answers if its bands agree (`lone_side`, `bands_agree`); otherwise both
+/// sides' values, paired, if they are spread as a rotation's (`spread_is_rotation`).
+pub(crate) fn band_choice(
+    values: &[[Option<i64>; COL_BANDS]; 2],
+    (above, upper_band_sides): ([bool; ROW_BANDS], usize),
     support: u8,
     coverage: Coverage,
-) -> bool {
+) -> BandChoice {
+    let (n, lo, hi) = range_of(values.iter().flatten().flatten().copied());
+    let above_ok = above_is_rotation(above, coverage)
+        || (n == 2 * COL_BANDS && bands_agree(lo, hi))
+        || wide_upper_motion(above, upper_band_sides, values, (lo, hi));
+    let bands = values.map(|side| side.map(|v| v.is_some()));
+    if let Some(side) = lone_side(bands) {
+        let fits = values.get(side).map_or(&[][..], |f| &f[..]);
+        let (_, lo, hi) = range_of(fits.iter().flatten().copied());
+        return if above_ok && bands_agree(lo, hi) {
+            BandChoice::Side(side)
+        } else {
+            BandChoice::Nothing
+        };
+    }
+    if above_ok && spread_is_rotation(bands, support, coverage) {
+        BandChoice::Pairs
+    } else {
+        BandChoice::Nothing
+    }
+}
+
+/// Which row bands above the principal row have a value in some column band side, and how
+/// many column band sides have one in some row band there, from `has(col, row)`: whether the
+/// region of column band side `col` (of `2 x` [`COL_BANDS`], in any order) and row band `row`
+/// above the principal row has a value.
+pub(crate) fn upper_coverage(has: impl Fn(usize, usize) -> bool) -> ([bool; ROW_BANDS], usize) {
+    let grid: [[bool; ROW_BANDS]; 2 * COL_BANDS] =
+        core::array::from_fn(|col| core::array::from_fn(|row| has(col, row)));
+    let above = core::array::from_fn(|row| grid.iter().any(|rows| rows.get(row) == Some(&true)));
+    let sides = grid.iter().filter(|rows| rows.contains(&true)).count();
+    (above, sides)
+}
+
+/// Whether a field's values are spread over the view as a rotation's are: a value in some
+/// column band on each side of the principal point (what is odd in `X` must cancel), and
+/// either `support` mirrored bands (at most the paired bands the layout covers) or at least
+/// half of the mirrored bands' sides. `bands[side][band]`: that band's side has a value.
+fn spread_is_rotation(bands: [[bool; COL_BANDS]; 2], support: u8, coverage: Coverage) -> bool {
     let count = |flags: &[bool]| flags.iter().filter(|&&f| f).count();
     let [left, right] = bands;
     let (n_left, n_right) = (count(&left), count(&right));
     let mirrored = left.iter().zip(&right).filter(|(a, b)| **a && **b).count();
     let paired = coverage.paired_bands;
     let need = usize::from(support.min(paired).max(1));
-    n_left > 0
-        && n_right > 0
-        && (mirrored >= need || n_left + n_right >= usize::from(paired))
-        && above_ok
+    n_left > 0 && n_right > 0 && (mirrored >= need || n_left + n_right >= usize::from(paired))
 }
 
-/// How many column band values (intercept, variance) `fits` holds, and their least and
-/// greatest intercept.
-fn value_range<'a>(fits: impl Iterator<Item = &'a Option<(i64, u64)>>) -> (usize, i64, i64) {
-    fits.flatten()
-        .fold((0, i64::MAX, i64::MIN), |(n, lo, hi), &(v, _)| {
-            (n + 1, lo.min(v), hi.max(v))
-        })
+/// How many `values` there are, and the least and the greatest.
+fn range_of(values: impl Iterator<Item = i64>) -> (usize, i64, i64) {
+    values.fold((0, i64::MAX, i64::MIN), |(n, lo, hi), v| {
+        (n + 1, lo.min(v), hi.max(v))
+    })
 }
 
 /// Whether the row bands above the principal row with values (`above[row]`: some region of
 /// row band `row` above it has one) are spread as a rotation's: at least [`ABOVE_SUPPORT`] of
 /// those the layout reaches (its `above_bands`), the topmost among them; none asked for when
 /// the layout has no row above the principal point.
-pub(crate) fn above_is_rotation(above: [bool; ROW_BANDS], coverage: Coverage) -> bool {
+fn above_is_rotation(above: [bool; ROW_BANDS], coverage: Coverage) -> bool {
     let reach = usize::from(coverage.above_bands).min(ROW_BANDS);
     let above = above.get(..reach).unwrap_or(&[]);
     let above_need = (ABOVE_SUPPORT as usize).min(reach);
@@ -1092,32 +1103,26 @@ pub(crate) fn above_is_rotation(above: [bool; ROW_BANDS], coverage: Coverage) ->
 /// Whether the motion above the principal row is as wide as only a rotation's: values in at
 /// least [`ABOVE_SUPPORT`] row bands above it (`above[row]`) and in at least
 /// [`WIDE_UPPER_BAND_SIDES`] column band sides there (`upper_band_sides`), and column band
-/// values (`values[side][band]`, any unit) of one sign whose outer half is not slower than
-/// their inner half ([`WIDE_FALLOFF_TENTHS`]). Where the top row band sees no texture (sky, or
-/// scenery too faint to fire at half the usual contrast), a rotation still moves the rows
-/// below it across the whole width at one rate; people walking past move a few column bands
-/// at a time, and a bus passing close by, at one depth, reads about 30 % slower in the outer
-/// bands.
-pub(crate) fn wide_upper_motion(
+/// values (`values[side][band]`, least and greatest `lo`, `hi`) of one sign whose outer half is
+/// not slower than their inner half ([`WIDE_FALLOFF_TENTHS`]). Where the top row band sees no
+/// texture (sky, or scenery too faint to fire at half the usual contrast), a rotation still
+/// moves the rows below it across the whole width at one rate; people walking past move a few
+/// column bands at a time, and a bus passing close by, at one depth, reads about 30 % slower
+/// in the outer bands.
+fn wide_upper_motion(
     above: [bool; ROW_BANDS],
     upper_band_sides: usize,
-    values: [[Option<i64>; COL_BANDS]; 2],
+    values: &[[Option<i64>; COL_BANDS]; 2],
+    (lo, hi): (i64, i64),
 ) -> bool {
     if above.iter().filter(|&&f| f).count() < ABOVE_SUPPORT as usize
         || upper_band_sides < WIDE_UPPER_BAND_SIDES
     {
         return false;
     }
-    let (n, lo, hi) = values
-        .iter()
-        .flatten()
-        .flatten()
-        .fold((0usize, i64::MAX, i64::MIN), |(n, lo, hi), &v| {
-            (n + 1, lo.min(v), hi.max(v))
-        });
     // (count, sum of |value|) of the inner and the outer half of the bands.
     let mut halves = [(0i64, 0i64); 2];
-    for side in &values {
+    for side in values {
         for (band, v) in side.iter().enumerate() {
             if let (Some(v), Some(h)) = (v, halves.get_mut(2 * band / COL_BANDS)) {
                 h.0 += 1;
@@ -1126,8 +1131,7 @@ pub(crate) fn wide_upper_motion(
         }
     }
     let [(n_in, sum_in), (n_out, sum_out)] = halves;
-    n > 0
-        && (lo > 0 || hi < 0)
+    (lo > 0 || hi < 0)
         && n_in > 0
         && n_out > 0
         && sum_out.saturating_mul(10).saturating_mul(n_in)
@@ -1138,7 +1142,7 @@ pub(crate) fn wide_upper_motion(
 
 /// The side (0: left) that has values in at least [`LONE_SIDE_BANDS`] column bands while the
 /// other has a value in none (`bands[side][band]`), if any.
-pub(crate) fn lone_side(bands: [[bool; COL_BANDS]; 2]) -> Option<usize> {
+fn lone_side(bands: [[bool; COL_BANDS]; 2]) -> Option<usize> {
     let count = |flags: &[bool; COL_BANDS]| flags.iter().filter(|&&f| f).count();
     match bands.map(|b| count(&b)) {
         [0, n] if n >= LONE_SIDE_BANDS => Some(1),
@@ -1149,7 +1153,7 @@ pub(crate) fn lone_side(bands: [[bool; COL_BANDS]; 2]) -> Option<usize> {
 
 /// Whether column band values from `lo` to `hi` (any unit) agree as a rotation's: one sign,
 /// and `hi - lo` within `1 / BAND_SPREAD` of `|lo + hi| / 2`.
-pub(crate) fn bands_agree(lo: i64, hi: i64) -> bool {
+fn bands_agree(lo: i64, hi: i64) -> bool {
     let mid = (lo / 2).saturating_add(hi / 2).saturating_abs();
     (lo > 0 || hi < 0) && hi.saturating_sub(lo).saturating_mul(BAND_SPREAD) <= mid
 }
@@ -1556,10 +1560,9 @@ mod tests {
         // Row bands 0 and 1 above the principal row move (the top one sees no texture, as a
         // faint skyline at half the usual contrast), in the listed column band sides; the
         // band values scatter by more than a fifth (few decodes), one sign.
-        let scattered = |side: usize, band: usize| [300, 240, 330, 270][(band + side) % 4];
+        let wide = |side: usize, band: usize| [300, 240, 330, 270][(band + side) % 4];
         let all: [(usize, usize); 2 * COL_BANDS] = core::array::from_fn(|i| (i % 2, i / 2));
         let object = |_: usize, band: usize| object_rate_milli(band) as i64;
-        let wide = |side, band| scattered(side, band);
         for (sides, rate, answers) in [
             // Seven of the eight band sides at one rate, give or take: a rotation.
             (&all[1..], &wide as &dyn Fn(usize, usize) -> i64, true),
