@@ -1459,6 +1459,13 @@ impl SpikePopulation {
                 }
             }
         }
+        // An onset the near units decoded at their ceiling reads no slower than their floor
+        // (as the fixed readout).
+        let dt_s = if near_chosen && !self.near && self.fast_reach_s.is_none() {
+            dt_s.min(stride * target.near_floor_s)
+        } else {
+            dt_s
+        };
         let dx = f64::from(x) - target.cx;
         let g = target.focal + dx * dx / target.focal;
         let w = f64::from(self.stride) / (dt_s * g);

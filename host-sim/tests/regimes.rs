@@ -195,7 +195,7 @@ fn car_forward_motion() {
 #[test]
 fn drone_forward_flight() {
     let (f, s) = scene(Regime::Drone, 3, 2.5);
-    check_turning("drone", &f, &s, (0.95, 0.17, 0.1), 1.4);
+    check_turning("drone", &f, &s, (0.95, 0.17, 0.1), 1.25);
 }
 
 #[test]
