@@ -323,9 +323,10 @@ pub enum InputFilter {
 /// Counters of what the network saw.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NetStats {
-    /// Events offered.
+    /// Events processed: those inside the layout (all events offered: `events + ignored`).
     pub events: u64,
-    /// Events outside the sensor or the layout, ignored.
+    /// Events outside the sensor or the layout, ignored (a pipeline offers its side networks
+    /// only the events inside: [`crate::pipeline::Pipeline::event`]).
     pub ignored: u64,
     /// Events the input filter held back.
     pub filtered: u64,
@@ -753,17 +754,34 @@ impl<'a, L: Layout> Network<'a, L> {
     }
 
     /// Processes one event. Spikes of the units it triggers, up to the event time, come first.
+    #[inline]
     pub fn event<S: NetSink>(&mut self, ev: Event, sink: &mut S) {
-        self.stats.events += 1;
-        let (sw, sh) = self.layout.sensor();
-        if ev.x >= sw || ev.y >= sh {
-            self.stats.ignored += 1;
-            return;
+        if let Some(c) = self.locate(ev) {
+            self.event_in(ev, c, sink);
         }
-        let Some(c) = self.layout.cell(ev.x, ev.y) else {
-            self.stats.ignored += 1;
-            return;
+    }
+
+    /// The cell of the event's pixel, if the layout uses it; else the event is counted as
+    /// ignored here. Networks over one layout find the same cell, so a
+    /// pipeline locates each event once ([`crate::pipeline::Pipeline::event`]): most of a
+    /// busy sensor's events fall outside a small board's window.
+    #[inline]
+    pub fn locate(&mut self, ev: Event) -> Option<usize> {
+        let (sw, sh) = self.layout.sensor();
+        let c = if ev.x < sw && ev.y < sh {
+            self.layout.cell(ev.x, ev.y)
+        } else {
+            None
         };
+        if c.is_none() {
+            self.stats.ignored += 1;
+        }
+        c
+    }
+
+    /// Processes one event at cell `c` ([`Network::locate`]).
+    pub fn event_in<S: NetSink>(&mut self, ev: Event, c: usize, sink: &mut S) {
+        self.stats.events += 1;
         let Some(own) = self.own_traces::<S>(c, ev.t_us) else {
             return;
         };
@@ -1256,21 +1274,25 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
 ) {
     let cell = c as u32;
     let [lr, rl] = &mut pair.units;
-    for (u, dir) in [(lr, Dir::LeftToRight), (rl, Dir::RightToLeft)] {
-        if u.due(due) {
-            loop {
-                let n = kernel.burst_emit_into(u, until, run);
-                let Some(spikes) = run.get(..n) else {
-                    break;
-                };
-                if n > 0 {
-                    sink.spikes(cell, dir, spikes);
-                    tally(dir, n as u32);
-                }
-                if n < SPIKE_RUN {
-                    break;
-                }
+    // Each unit by name (an array of the two would be iterated by index on every visit).
+    let mut unit = |u: &mut BurstUnit, dir: Dir| {
+        if !u.due(due) {
+            return;
+        }
+        loop {
+            let n = kernel.burst_emit_into(u, until, run);
+            let Some(spikes) = run.get(..n) else {
+                break;
+            };
+            if n > 0 {
+                sink.spikes(cell, dir, spikes);
+                tally(dir, n as u32);
+            }
+            if n < SPIKE_RUN {
+                break;
             }
         }
-    }
+    };
+    unit(lr, Dir::LeftToRight);
+    unit(rl, Dir::RightToLeft);
 }

@@ -141,11 +141,18 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         let t = EventTime::from_us(ev.t_us);
         match self.next_out {
             None => self.next_out = Some(t.add_us(self.period_us)),
-            Some(_) => self.emit_until(t, false, out),
+            // Most events come before the next sample is due.
+            Some(next) if t.is_after(next) => self.emit_until(t, false, out),
+            Some(_) => {}
         }
         self.last_event = t;
-        self.net.event(ev, &mut self.readout);
-        self.each_side(|net, sink| net.event(ev, sink));
+        // One layout: the side networks' cell is the main one's, and an event outside it is
+        // counted by the main network alone.
+        let Some(c) = self.net.locate(ev) else {
+            return;
+        };
+        self.net.event_in(ev, c, &mut self.readout);
+        self.each_side(|net, sink| net.event_in(ev, c, sink));
     }
 
     /// Moves the clock to `now_us` without an event, emitting every sample due up to it.

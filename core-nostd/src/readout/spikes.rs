@@ -122,6 +122,9 @@ pub const NEAR_DRIVE_SHARE_LOG2: i32 = -9962;
 const LOG2E_Q32: u64 = 6_196_328_019;
 /// `log2(e)` in Q16.
 const LOG2E_Q16: i64 = 94_548;
+/// A clean interval of `L` µs matches the predicted current within `TOL_Q16 / L` (Q16.16
+/// `log2`): 2 µs of timing, `log2(e) · 2 / L`.
+const TOL_Q16: u32 = 2 * LOG2E_Q16 as u32;
 
 /// [`SpikeCell::next`] of a cell that is not in its population's waiting queue.
 const NOT_QUEUED: u32 = u32::MAX;
@@ -570,12 +573,23 @@ impl BurstDecoder {
                 }
             }
             _ => {
-                // CLEAN: does the spike come when the measured current says it should?
-                let (l2x, l2y) = (self.l2x(since), tr.l2y());
-                let tol =
-                    ((2 * LOG2E_Q16) / i64::from(since)).min(1 << 16) as i32 + (1 << L2_SHIFT);
+                // CLEAN: does the spike come when the measured current says it should? (Every
+                // spike of a burst passes here: one logarithm, shared by `x` and `y`, and a
+                // 32-bit division.)
+                let l2_since = log2_q16(u64::from(since), 0);
+                let l2x = self
+                    .l2_time(since)
+                    .saturating_sub(self.log2_c)
+                    .saturating_sub(l2_since);
+                let l2y = tr.l2y();
+                let tol = (TOL_Q16 / since).min(1 << 16) as i32 + (1 << L2_SHIFT);
                 if since <= self.tau_us && (l2x - l2y).abs() <= tol {
-                    tr.set(state::CLEAN, 0, self.l2y_after(since));
+                    let next = self
+                        .log2_c
+                        .saturating_neg()
+                        .saturating_sub(l2_since)
+                        .saturating_sub(self.l2_tref);
+                    tr.set(state::CLEAN, 0, next);
                 } else if since <= self.tau_us && l2x < l2y - tol {
                     // Later than possible: the model lost track.
                     tr.set(state::UNKNOWN, 0, 0);
@@ -745,9 +759,8 @@ impl<'a> Decoding<'a> {
         if EventTime::from_us(t_us).is_after(EventTime::from_us(target.now)) {
             target.now = t_us;
         }
-        let decoder = self.decoder;
-        let Some(d) = self
-            .cells
+        let Self { decoder, cells, .. } = self;
+        let Some(d) = cells
             .get_mut(cell as usize)
             .and_then(|c| c.units.get_mut(dir.slot()))
             .and_then(|tr| decoder.spike(tr, t_us, true))
@@ -1135,9 +1148,14 @@ impl<L: Layout> NetSink for Spikes<'_, L> {
     const SPIKES: bool = true;
 
     fn spike(&mut self, s: Spike) {
+        self.spikes(s.cell, s.dir, &[s.t_us]);
+    }
+
+    fn spikes(&mut self, cell: u32, dir: Dir, times: &[u32]) {
         let near = self.near.as_ref().map(|n| &*n.cells);
-        self.fast
-            .spike(&mut self.target, s.cell, s.dir, s.t_us, near);
+        for &t in times {
+            self.fast.spike(&mut self.target, cell, dir, t, near);
+        }
     }
 }
 

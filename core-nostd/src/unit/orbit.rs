@@ -59,6 +59,13 @@ fn at(table: &[u32], i: usize) -> u64 {
     u64::from(table.get(i).copied().unwrap_or(0))
 }
 
+/// How many tiers start at or before `row` (0 for row 0). Counted from the first tier: a
+/// burst's rows are mostly in the first (one comparison past it).
+#[inline(always)]
+fn tiers_up_to(row: usize) -> usize {
+    TIERS.iter().take_while(|t| t.first <= row).count()
+}
+
 /// The tier holding `row` (`row >= 1`).
 #[inline(always)]
 fn tier_of(row: usize) -> &'static Tier {
@@ -67,7 +74,10 @@ fn tier_of(row: usize) -> &'static Tier {
         log2: 0,
         offset: 0,
     };
-    TIERS.iter().rev().find(|t| row >= t.first).unwrap_or(&NONE)
+    TIERS
+        .get(..tiers_up_to(row))
+        .and_then(<[Tier]>::last)
+        .unwrap_or(&NONE)
 }
 
 /// The table cell holding `alpha` (row >= 1, inside the table): its start (Q32.32), its width
@@ -215,10 +225,12 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
             row -= 1;
         }
     }
-    for t in TIERS.iter().rev() {
-        if row < t.first || row == 0 {
-            continue;
-        }
+    for t in TIERS
+        .get(..tiers_up_to(row))
+        .unwrap_or_default()
+        .iter()
+        .rev()
+    {
         // The interpolation weight in Q0.32: (b - a)·w >> wbits is the high word of
         // (b - a)·(w << log2).
         let w32 = (frac << t.log2) as u32;
