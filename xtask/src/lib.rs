@@ -13,6 +13,7 @@ use std::process::Command;
 
 use anyhow::{bail, Context, Result};
 
+pub mod profile;
 pub mod qemu;
 pub mod yaw;
 

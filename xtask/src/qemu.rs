@@ -33,7 +33,7 @@ pub const DEFAULT_LINK_MBIT: f64 = 32.0;
 pub const USAGE: &str = "usage: cargo xtask qemu INPUT --out yaw.csv [--via spi|file] [--live] \
 [--paced] [--link-mbit 32] [--icount-shift 0..3] [--work DIR] [--send-config] [host-sim run \
 flags: --layout, --window X0:Y0:W:H, --stride, --rate-hz, --tau-a-ms, --readout, --unit-pool, --focal-px, \
---cx, --cy, --width W --height H, --format]";
+--cx, --cy, --width W --height H, --format] [--profile FILE: instructions per function, from QEMU's block trace]";
 
 /// How the stream reaches the firmware.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -72,6 +72,9 @@ pub struct Qemu {
     /// For an AER stream: the settings (hex) the firmware starts with, instead of those
     /// `host-sim settings` gives for [`Qemu::run_flags`].
     pub start_settings: Option<String>,
+    /// Write the instructions executed per function here ([`crate::profile`]; the run is
+    /// many times slower).
+    pub profile: Option<PathBuf>,
 }
 
 /// What a QEMU run reports.
@@ -217,6 +220,7 @@ impl Qemu {
             icount_shift: None,
             send_config: false,
             start_settings: None,
+            profile: None,
         }
     }
 
@@ -258,6 +262,7 @@ impl Qemu {
                 "--live" => q.live = true,
                 "--paced" => q.paced = true,
                 "--send-config" => q.send_config = true,
+                "--profile" => q.profile = Some(PathBuf::from(val()?)),
                 "--icount-shift" => {
                     let v: u8 = val()?.parse().context("--icount-shift: not a number")?;
                     if v > 3 {
@@ -421,6 +426,14 @@ impl Qemu {
             ]);
         }
         qemu.arg("-kernel").arg(&elf);
+        let tracer = match &self.profile {
+            Some(_) => {
+                let t = crate::profile::Tracer::start(&work.join("trace.fifo"))?;
+                qemu.args(t.args());
+                Some(t)
+            }
+            None => None,
+        };
         let defmt =
             std::fs::File::create(work.join("defmt.bin")).context("cannot create defmt.bin")?;
         qemu.stdout(defmt);
@@ -434,6 +447,16 @@ impl Qemu {
             work.display()
         );
         let status = run_with_timeout(qemu, QEMU_TIMEOUT)?;
+        if let (Some(t), Some(path)) = (tracer, &self.profile) {
+            let p = t.finish()?;
+            std::fs::write(path, p.report())
+                .with_context(|| format!("cannot write {}", path.display()))?;
+            eprintln!(
+                "xtask: {} instructions per function in {}",
+                p.total,
+                path.display()
+            );
+        }
         let summary = std::fs::read_to_string(work.join("summary.txt")).unwrap_or_default();
         if status != Some(0) {
             bail!(
@@ -510,7 +533,8 @@ mod tests {
     fn xtask_options_are_taken_and_the_rest_goes_to_host_sim() {
         let q = Qemu::parse(&args(
             "rec/events.txt --layout paper-boxes --out y.csv --live --stride 3 --via file \
-             --window 0:122:346:15 --link-mbit 8 --paced --send-config --icount-shift 2",
+             --window 0:122:346:15 --link-mbit 8 --paced --send-config --icount-shift 2 \
+             --profile p.txt",
         ))
         .unwrap();
         assert_eq!(q.input, PathBuf::from("rec/events.txt"));
@@ -522,6 +546,7 @@ mod tests {
         assert_eq!(q.via, Some(Via::File));
         assert!(q.live && q.paced && q.send_config);
         assert_eq!((q.link_mbit, q.shift()), (8.0, 2));
+        assert_eq!(q.profile, Some(PathBuf::from("p.txt")));
     }
 
     #[test]

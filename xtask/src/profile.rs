@@ -1,0 +1,228 @@
+//! Where the emulated firmware's instructions go (`cargo xtask qemu … --profile FILE`).
+//!
+//! QEMU logs every translation block it translates (`-d in_asm`: the block's instructions,
+//! one line each, under `IN: SYMBOL`) and, with chaining off (`-d exec,nochain`), every block it
+//! executes (`Trace N: HOST [FLAGS/PC/…] SYMBOL`). A block's executions times its
+//! instructions, summed per function, is the function's share of the run's instructions
+//! (functions inlined into another count as that one). The log is read as QEMU writes it, through
+//! a FIFO: a run's log is gigabytes (the start-up's RAM clearing alone is ~20 M block runs).
+
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::thread::JoinHandle;
+
+use anyhow::{bail, Context, Result};
+
+/// Instructions executed per function of a traced run.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Profile {
+    /// `(function, instructions)`, most first (demangled, without the hash).
+    pub functions: Vec<(String, u64)>,
+    /// All instructions executed.
+    pub total: u64,
+}
+
+/// Reads a QEMU `-d in_asm,exec,nochain` log.
+///
+/// # Errors
+/// On a read error.
+pub fn read_trace(log: impl BufRead) -> Result<Profile> {
+    // Block start address -> its instruction count (the latest translation).
+    let mut sizes: HashMap<u32, u32> = HashMap::new();
+    // Block start address -> (executions, symbol).
+    let mut runs: HashMap<u32, (u64, String)> = HashMap::new();
+    // The block being listed: its start and instructions so far.
+    let mut listing: Option<(Option<u32>, u32)> = None;
+    for line in log.lines() {
+        let line = line.context("reading the QEMU log")?;
+        if line.starts_with("IN:") {
+            listing = Some((None, 0));
+            continue;
+        }
+        if let Some((start, n)) = listing.as_mut() {
+            if let Some(addr) = line.strip_prefix("0x").and_then(|l| l.split(':').next()) {
+                if let Ok(a) = u32::from_str_radix(addr, 16) {
+                    start.get_or_insert(a);
+                    *n += 1;
+                    continue;
+                }
+            }
+            if let (Some(a), n) = (*start, *n) {
+                sizes.insert(a, n);
+            }
+            listing = None;
+        }
+        if let Some(rest) = line.strip_prefix("Trace ") {
+            let Some((pc, symbol)) = trace_pc(rest) else {
+                continue;
+            };
+            let e = runs.entry(pc).or_insert_with(|| (0, symbol.to_string()));
+            e.0 += 1;
+        }
+    }
+    if let Some((Some(a), n)) = listing {
+        sizes.insert(a, n);
+    }
+    let mut per: HashMap<String, u64> = HashMap::new();
+    let mut total = 0u64;
+    for (pc, (count, symbol)) in runs {
+        let instructions = count * u64::from(sizes.get(&pc).copied().unwrap_or(1));
+        total += instructions;
+        *per.entry(demangle(&symbol)).or_default() += instructions;
+    }
+    let mut functions: Vec<_> = per.into_iter().collect();
+    functions.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
+    Ok(Profile { functions, total })
+}
+
+/// The guest PC and symbol of a `Trace N: HOST [FLAGS/PC/…] SYMBOL` line (after `Trace `).
+fn trace_pc(rest: &str) -> Option<(u32, &str)> {
+    let open = rest.find('[')?;
+    let close = rest[open..].find(']')? + open;
+    let pc = rest[open + 1..close].split('/').nth(1)?;
+    let pc = u32::from_str_radix(pc, 16).ok()?;
+    Some((pc, rest[close + 1..].trim()))
+}
+
+/// A Rust symbol demangled without its hash; others as they are.
+fn demangle(symbol: &str) -> String {
+    format!("{:#}", rustc_demangle::demangle(symbol))
+}
+
+impl Profile {
+    /// The report: total, then `instructions  share  function`, one line each, most first.
+    pub fn report(&self) -> String {
+        let mut s = format!(
+            "{} instructions executed (QEMU block trace; start-up included)\n",
+            self.total
+        );
+        for (f, n) in &self.functions {
+            let share = 100.0 * *n as f64 / self.total.max(1) as f64;
+            s.push_str(&format!("{n:>14} {share:>6.2} %  {f}\n"));
+        }
+        s
+    }
+}
+
+/// A reader of the QEMU log QEMU writes into a FIFO: create it, give QEMU [`Tracer::args`],
+/// then [`Tracer::finish`] once QEMU has exited.
+pub struct Tracer {
+    fifo: PathBuf,
+    reader: JoinHandle<Result<Profile>>,
+}
+
+impl Tracer {
+    /// A FIFO at `fifo` (replacing any file there) and a thread that reads the log from it.
+    ///
+    /// # Errors
+    /// When the FIFO cannot be made (`mkfifo`).
+    pub fn start(fifo: &Path) -> Result<Self> {
+        let _ = std::fs::remove_file(fifo);
+        let ok = Command::new("mkfifo")
+            .arg(fifo)
+            .status()
+            .context("cannot run mkfifo")?
+            .success();
+        if !ok {
+            bail!("mkfifo {} failed", fifo.display());
+        }
+        let path = fifo.to_path_buf();
+        let reader = std::thread::spawn(move || {
+            // Blocks until QEMU opens the FIFO for writing.
+            let f = File::open(&path).with_context(|| format!("cannot open {}", path.display()))?;
+            read_trace(BufReader::with_capacity(1 << 20, f))
+        });
+        Ok(Self {
+            fifo: fifo.to_path_buf(),
+            reader,
+        })
+    }
+
+    /// QEMU's arguments for the log.
+    pub fn args(&self) -> Vec<String> {
+        vec![
+            "-d".into(),
+            "in_asm,exec,nochain".into(),
+            "-D".into(),
+            self.fifo.display().to_string(),
+        ]
+    }
+
+    /// The profile, once QEMU has exited (if it never opened the FIFO, the reader is released
+    /// with an empty log).
+    ///
+    /// # Errors
+    /// When the reader failed.
+    pub fn finish(self) -> Result<Profile> {
+        if !self.reader.is_finished() {
+            // Opening the write end releases a reader still waiting in `open` (and gives it
+            // end-of-file); with no reader left it fails, which is fine.
+            use std::os::unix::fs::OpenOptionsExt;
+            let _ = std::fs::OpenOptions::new()
+                .write(true)
+                .custom_flags(0o4000) // O_NONBLOCK
+                .open(&self.fifo)
+                .map(|mut f| f.flush());
+        }
+        let profile = self
+            .reader
+            .join()
+            .map_err(|_| anyhow::anyhow!("the QEMU log reader panicked"))??;
+        let _ = std::fs::remove_file(&self.fifo);
+        Ok(profile)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LOG: &str = "\
+----------------
+IN: Reset
+0x00000404:  480e       ldr      r0, [pc, #0x38]
+0x00000406:  490f       ldr      r1, [pc, #0x3c]
+
+Trace 0: 0x7f5a14000100 [00800408/00000404/00000110/ff020200] Reset
+----------------
+IN: _ZN10core_nostd7network16Network$LT$L$GT$4tick17hd9e1b4cd10bf8fa1E
+0x00001000:  b580       push     {r7, lr}
+0x00001002:  466f       mov      r7, sp
+0x00001004:  bd80       pop      {r7, pc}
+
+Trace 0: 0x7f5a14000240 [00800408/00001000/00000110/ff020200] _ZN10core_nostd7network16Network$LT$L$GT$4tick17hd9e1b4cd10bf8fa1E
+Trace 0: 0x7f5a14000240 [00800408/00001000/00000110/ff020200] _ZN10core_nostd7network16Network$LT$L$GT$4tick17hd9e1b4cd10bf8fa1E
+Stopped execution of TB chain before 0x7f7f900008c0 [0000040a] Reset
+Trace 0: 0x7f5a14000100 [00800408/00000404/00000110/ff020200] Reset
+Trace 0: 0x7f5a14000240 [00800408/00001000/00000110/ff020200] _ZN10core_nostd7network16Network$LT$L$GT$4tick17hd9e1b4cd10bf8fa1E
+";
+
+    #[test]
+    fn executions_times_block_sizes_per_function() {
+        let p = read_trace(LOG.as_bytes()).unwrap();
+        // tick: 3 runs of a 3-instruction block; Reset: 2 runs of 2.
+        assert_eq!(
+            p.functions,
+            vec![
+                ("core_nostd::network::Network<L>::tick".to_string(), 9),
+                ("Reset".to_string(), 4)
+            ]
+        );
+        assert_eq!(p.total, 13);
+        let r = p.report();
+        assert!(r.starts_with("13 instructions executed"), "{r}");
+        assert!(
+            r.contains("9  69.23 %  core_nostd::network::Network<L>::tick"),
+            "{r}"
+        );
+    }
+
+    #[test]
+    fn lines_it_does_not_know_are_skipped() {
+        let p = read_trace("Trace 0: garbage\nIN: x\nnot an address\n".as_bytes()).unwrap();
+        assert_eq!(p, Profile::default());
+    }
+}
