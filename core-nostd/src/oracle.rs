@@ -1431,13 +1431,16 @@ impl SpikePopulation {
         let near_chosen = target.stride.near;
         // The layout's units take `stride` times as long as the near units over one pixel.
         let stride = f64::from(target.layout.stride());
-        match self.fast_reach_s {
+        // The crossing time read (as the fixed readout: the near units' floor bounds the
+        // layout's decode of an onset they decoded at their ceiling).
+        let dt_s = match self.fast_reach_s {
             Some(reach) => {
                 let reach = if near_chosen { stride * reach } else { reach };
                 if busy || dt_s <= reach {
                     // The paper's units time this edge.
                     return true;
                 }
+                dt_s
             }
             None => {
                 if crate::readout::stride_choice::StrideChoice::counts_row(y) {
@@ -1445,26 +1448,21 @@ impl SpikePopulation {
                     target.stride.add(self.near, region, u == 1);
                 }
                 let read = match (near_chosen, self.near) {
-                    (false, near) => !near,
-                    (true, true) => dt_s >= target.near_floor_s,
+                    (false, near) => (!near).then_some(dt_s),
+                    (true, true) => (dt_s >= target.near_floor_s).then_some(dt_s),
                     // One stride times each onset: the layout's units those the near units
-                    // decoded at their ceiling.
+                    // decoded at their ceiling, no slower than their floor.
                     (true, false) => target
                         .near
                         .as_ref()
-                        .is_some_and(|n| n.decoded_at_ceiling(cell, u, t_trg)),
+                        .is_some_and(|n| n.decoded_at_ceiling(cell, u, t_trg))
+                        .then(|| dt_s.min(stride * target.near_floor_s)),
                 };
-                if !read {
+                let Some(dt_s) = read else {
                     return true;
-                }
+                };
+                dt_s
             }
-        }
-        // An onset the near units decoded at their ceiling reads no slower than their floor
-        // (as the fixed readout).
-        let dt_s = if near_chosen && !self.near && self.fast_reach_s.is_none() {
-            dt_s.min(stride * target.near_floor_s)
-        } else {
-            dt_s
         };
         let dx = f64::from(x) - target.cx;
         let g = target.focal + dx * dx / target.focal;

@@ -420,20 +420,39 @@ impl BurstDecoder {
         ((u128::from(t) * u128::from(self.inv_tau_q32)) >> 32).min(i32::MAX as u128) as i32
     }
 
+    /// `log2 L` (Q16.16) of an interval of `L >= 1` µs, as [`BurstDecoder::l2x_of`] and
+    /// [`BurstDecoder::l2y_of`] take it.
+    #[inline]
+    fn l2_interval(l_us: u32) -> i32 {
+        log2_q16(u64::from(l_us.max(1)), 0)
+    }
+
     /// `log2 x(L)`: the current at the start of a clean charge of `L >= 1` µs.
     #[inline]
     fn l2x(&self, l_us: u32) -> i32 {
+        self.l2x_of(l_us, Self::l2_interval(l_us))
+    }
+
+    /// [`BurstDecoder::l2x`] with `log2 L` given (`l2_l`).
+    #[inline]
+    fn l2x_of(&self, l_us: u32, l2_l: i32) -> i32 {
         self.l2_time(l_us)
             .saturating_sub(self.log2_c)
-            .saturating_sub(log2_q16(u64::from(l_us.max(1)), 0))
+            .saturating_sub(l2_l)
     }
 
     /// `log2 y`: the current at the next charging start after a clean charge of `L` µs.
     #[inline]
     fn l2y_after(&self, l_us: u32) -> i32 {
+        self.l2y_of(Self::l2_interval(l_us))
+    }
+
+    /// [`BurstDecoder::l2y_after`] from `log2 L` (`l2_l`).
+    #[inline]
+    fn l2y_of(&self, l2_l: i32) -> i32 {
         self.log2_c
             .saturating_neg()
-            .saturating_sub(log2_q16(u64::from(l_us.max(1)), 0))
+            .saturating_sub(l2_l)
             .saturating_sub(self.l2_tref)
     }
 
@@ -576,20 +595,12 @@ impl BurstDecoder {
                 // CLEAN: does the spike come when the measured current says it should? (Every
                 // spike of a burst passes here: one logarithm, shared by `x` and `y`, and a
                 // 32-bit division.)
-                let l2_since = log2_q16(u64::from(since), 0);
-                let l2x = self
-                    .l2_time(since)
-                    .saturating_sub(self.log2_c)
-                    .saturating_sub(l2_since);
+                let l2_since = Self::l2_interval(since);
+                let l2x = self.l2x_of(since, l2_since);
                 let l2y = tr.l2y();
                 let tol = (TOL_Q16 / since).min(1 << 16) as i32 + (1 << L2_SHIFT);
                 if since <= self.tau_us && (l2x - l2y).abs() <= tol {
-                    let next = self
-                        .log2_c
-                        .saturating_neg()
-                        .saturating_sub(l2_since)
-                        .saturating_sub(self.l2_tref);
-                    tr.set(state::CLEAN, 0, next);
+                    tr.set(state::CLEAN, 0, self.l2y_of(l2_since));
                 } else if since <= self.tau_us && l2x < l2y - tol {
                     // Later than possible: the model lost track.
                     tr.set(state::UNKNOWN, 0, 0);
@@ -926,7 +937,9 @@ impl<'a> Decoding<'a> {
         let log2_stride = target.rates.log2_stride();
         let (x, y) = target.layout.pixel(cell);
         let mut region = None;
-        match self.slow_rule {
+        // The crossing time read (`l2dt`, or the near units' floor for the layout's decode of
+        // an onset they decoded at their ceiling, below).
+        let l2dt = match self.slow_rule {
             Some(rule) => {
                 let reach = match chosen {
                     Stride::Near => rule.reach_log2_s.saturating_add(log2_stride),
@@ -937,6 +950,7 @@ impl<'a> Decoding<'a> {
                     // pixel had another onset shortly before.
                     return true;
                 }
+                l2dt
             }
             None => {
                 // The paper's units of either stride: counted for the choice between them.
@@ -948,29 +962,26 @@ impl<'a> Decoding<'a> {
                     region = Some(r);
                 }
                 let read = match (chosen, self.stride) {
-                    (Stride::Layout, Stride::Layout) => true,
-                    (Stride::Layout, Stride::Near) => false,
-                    (Stride::Near, Stride::Near) => l2dt >= target.near_floor_log2_s,
+                    (Stride::Layout, Stride::Layout) => Some(l2dt),
+                    (Stride::Layout, Stride::Near) => None,
+                    (Stride::Near, Stride::Near) => {
+                        (l2dt >= target.near_floor_log2_s).then_some(l2dt)
+                    }
                     // The onsets the near units decoded at their ceiling, whatever the layout's
-                    // units read: one stride times each onset.
+                    // units read: one stride times each onset. Such an onset crossed one pixel
+                    // faster than the floor, so its layout decode reads no slower than twice
+                    // the floor over the stride: read slower (its own jitter) it would rank
+                    // among the near units' slower decodes, and the field's median would sink.
                     (Stride::Near, Stride::Layout) => near
                         .and_then(|n| n.get(cell))
-                        .is_some_and(|n| n.decoded_at_ceiling(t_trg, u, target.log2_w_trg)),
+                        .filter(|n| n.decoded_at_ceiling(t_trg, u, target.log2_w_trg))
+                        .map(|_| l2dt.min(target.near_floor_log2_s.saturating_add(log2_stride))),
                 };
-                if !read {
+                let Some(l2dt) = read else {
                     return true;
-                }
+                };
+                l2dt
             }
-        }
-        // An onset the near units decoded at their ceiling crossed one pixel faster than their
-        // floor: the layout's decode of it reads no slower than that (twice the floor over its
-        // stride). Reading its own jitter below would rank it among the near units' slower
-        // decodes, and the field's median would sink.
-        let l2dt = match (chosen, self.stride, self.slow_rule) {
-            (Stride::Near, Stride::Layout, None) => {
-                l2dt.min(target.near_floor_log2_s.saturating_add(log2_stride))
-            }
-            _ => l2dt,
         };
         let l2 = match self.stride {
             Stride::Near => target.rates.near_rotation_rate(l2dt, x),
