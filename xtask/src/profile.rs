@@ -21,9 +21,16 @@ use anyhow::{bail, Context, Result};
 pub struct Profile {
     /// `(function, instructions)`, most first (demangled, without the hash).
     pub functions: Vec<(String, u64)>,
+    /// `(block start address, instructions, function)` of the [`HOT_BLOCKS`] blocks that
+    /// executed the most instructions, most first: where inside a function they go (map an
+    /// address to its source line with `addr2line -e ELF ADDR`).
+    pub blocks: Vec<(u32, u64, String)>,
     /// All instructions executed.
     pub total: u64,
 }
+
+/// Blocks listed in [`Profile::blocks`].
+pub const HOT_BLOCKS: usize = 40;
 
 /// Reads a QEMU `-d in_asm,exec,nochain` log.
 ///
@@ -67,15 +74,24 @@ pub fn read_trace(log: impl BufRead) -> Result<Profile> {
         sizes.insert(a, n);
     }
     let mut per: HashMap<String, u64> = HashMap::new();
+    let mut blocks = Vec::with_capacity(runs.len());
     let mut total = 0u64;
     for (pc, (count, symbol)) in runs {
         let instructions = count * u64::from(sizes.get(&pc).copied().unwrap_or(1));
         total += instructions;
-        *per.entry(demangle(&symbol)).or_default() += instructions;
+        let function = demangle(&symbol);
+        *per.entry(function.clone()).or_default() += instructions;
+        blocks.push((pc, instructions, function));
     }
     let mut functions: Vec<_> = per.into_iter().collect();
     functions.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
-    Ok(Profile { functions, total })
+    blocks.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
+    blocks.truncate(HOT_BLOCKS);
+    Ok(Profile {
+        functions,
+        blocks,
+        total,
+    })
 }
 
 /// The guest PC and symbol of a `Trace N: HOST [FLAGS/PC/…] SYMBOL` line (after `Trace `).
@@ -93,7 +109,8 @@ fn demangle(symbol: &str) -> String {
 }
 
 impl Profile {
-    /// The report: total, then `instructions  share  function`, one line each, most first.
+    /// The report: total, then `instructions  share  function`, one line each, most first;
+    /// then the hottest blocks, `address  instructions  share  function`.
     pub fn report(&self) -> String {
         let mut s = format!(
             "{} instructions executed (QEMU block trace; start-up included)\n",
@@ -102,6 +119,13 @@ impl Profile {
         for (f, n) in &self.functions {
             let share = 100.0 * *n as f64 / self.total.max(1) as f64;
             s.push_str(&format!("{n:>14} {share:>6.2} %  {f}\n"));
+        }
+        s.push_str(&format!(
+            "\nhottest blocks (start address; addr2line -e ELF ADDR gives the source line)\n"
+        ));
+        for (pc, n, f) in &self.blocks {
+            let share = 100.0 * *n as f64 / self.total.max(1) as f64;
+            s.push_str(&format!("0x{pc:08x} {n:>14} {share:>6.2} %  {f}\n"));
         }
         s
     }
@@ -212,10 +236,25 @@ Trace 0: 0x7f5a14000240 [00800408/00001000/00000110/ff020200] _ZN10core_nostd7ne
             ]
         );
         assert_eq!(p.total, 13);
+        assert_eq!(
+            p.blocks,
+            vec![
+                (
+                    0x1000,
+                    9,
+                    "core_nostd::network::Network<L>::tick".to_string()
+                ),
+                (0x404, 4, "Reset".to_string())
+            ]
+        );
         let r = p.report();
         assert!(r.starts_with("13 instructions executed"), "{r}");
         assert!(
             r.contains("9  69.23 %  core_nostd::network::Network<L>::tick"),
+            "{r}"
+        );
+        assert!(
+            r.contains("0x00001000              9  69.23 %  core_nostd"),
             "{r}"
         );
     }
