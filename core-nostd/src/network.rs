@@ -30,6 +30,14 @@
 //!   once per that span instead of once per tick; an event that changes a unit's burst takes
 //!   back its spikes given beyond the event ([`NetSink::retract`]). The spikes that stay are
 //!   exactly those of emission at the clock (tested).
+//! - A sparse sink ([`NetSink::SPARSE`], the spike readout) gets each burst's first two spikes
+//!   after every input, then the last two spikes before the unit's next input or the burst's
+//!   last two or three, each as it comes; the spikes between are counted, not computed one
+//!   by one (their places on the orbit are known: the burst tables' rows). A burst of `n`
+//!   spikes then costs about five emissions and visits, not `n` (21 spikes per burst on the
+//!   STM32F405's strip at dev03's rate). What the spike readout decodes from them is what it
+//!   decodes from every spike, except inputs it would only have noticed after the first
+//!   interval that followed them (tested).
 //!
 //! # Input filter
 //! [`InputFilter::Onsets`] passes only the first event of each same-polarity run at a pixel (or
@@ -276,6 +284,17 @@ pub trait NetSink {
     /// A spike emitted ahead of the clock that an event has cancelled (the same [`Spike`] as
     /// given to [`NetSink::spike`]; the latest of a unit first).
     fn retract(&mut self, _s: Spike) {}
+    /// Whether this sink takes each burst sparsely: the first two spikes after each input to
+    /// a unit, then (skipping the rest) the last two at or before the unit's next input and
+    /// the last two or three of its burst, each as it comes, the skipped ones counted in
+    /// [`NetStats`] (see [`Kernel::burst_emit_run`]). Between the spikes it gets, a burst
+    /// follows its orbit: nothing acted on the unit. For a sink that reads a burst's first
+    /// interval and the intervals around each input, not every spike; only without
+    /// [`NetSink::ahead_us`].
+    const SPARSE: bool = false;
+    /// With [`NetSink::SPARSE`]: the next spike of unit `dir` at `cell` follows spikes of its
+    /// burst that were skipped.
+    fn resume(&mut self, _cell: u32, _dir: Dir) {}
 }
 
 /// Which FAC pixels the network reads for one event of a sink with [`NetSink::NEAR`].
@@ -994,9 +1013,17 @@ impl<'a, L: Layout> Network<'a, L> {
             return;
         };
         let (stats, run) = (&mut self.stats, &mut self.run);
-        emit_pair(kernel, pair, c, t_in, fine(t_in), sink, run, |dir, n| {
-            count(stats, dir, n)
-        });
+        emit_pair(
+            kernel,
+            pair,
+            c,
+            t_in,
+            fine(t_in),
+            true,
+            sink,
+            run,
+            |dir, n| count(stats, dir, n),
+        );
     }
 
     /// The TRG input of the units in `mask`: each takes back its spikes emitted beyond the
@@ -1022,6 +1049,7 @@ impl<'a, L: Layout> Network<'a, L> {
             return;
         };
         let pooled = self.pool.is_some();
+        let sparse = S::SPARSE && sink.ahead_us() == 0;
         let Some(pair) = self.units.get_mut(s) else {
             return;
         };
@@ -1031,6 +1059,7 @@ impl<'a, L: Layout> Network<'a, L> {
                 continue;
             }
             let stats = &mut self.stats;
+            kernel.burst_plan_end(u);
             kernel.burst_retract(u, fine(t_in), |t_us| {
                 uncount(stats, dir);
                 sink.retract(Spike { t_us, cell, dir })
@@ -1040,6 +1069,9 @@ impl<'a, L: Layout> Network<'a, L> {
                 *u = BurstUnit::IDLE;
             }
             kernel.burst_input(u, t_in, WideTrace(f));
+            if sparse {
+                kernel.burst_plan_sparse(u);
+            }
         }
         if pair.pending() {
             self.mark_active(s);
@@ -1198,7 +1230,7 @@ impl<'a, L: Layout> Network<'a, L> {
                         continue;
                     };
                     let (stats, run) = (&mut self.stats, &mut self.run);
-                    emit_pair(kernel, pair, c, due, until, sink, run, |dir, n| {
+                    emit_pair(kernel, pair, c, due, until, false, sink, run, |dir, n| {
                         count(stats, dir, n)
                     });
                     if !pair.pending() {
@@ -1229,11 +1261,12 @@ impl<'a, L: Layout> Network<'a, L> {
                     continue;
                 };
                 let (stats, run) = (&mut self.stats, &mut self.run);
-                emit_pair(kernel, pair, c, t, until, sink, run, |dir, n| {
+                emit_pair(kernel, pair, c, t, until, true, sink, run, |dir, n| {
                     count(stats, dir, n)
                 });
                 let cell = c as u32;
                 for (u, dir) in pair.units.iter_mut().zip(Dir::BOTH) {
+                    kernel.burst_plan_end(u);
                     kernel.burst_retract(u, until, |t_us| {
                         uncount(stats, dir);
                         sink.retract(Spike { t_us, cell, dir })
@@ -1268,6 +1301,7 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
     c: usize,
     due: u32,
     until: FineTime,
+    catch_up: bool,
     sink: &mut S,
     run: &mut [u32; SPIKE_RUN],
     mut tally: T,
@@ -1276,6 +1310,30 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
     let [lr, rl] = &mut pair.units;
     // Each unit by name (an array of the two would be iterated by index on every visit).
     let mut unit = |u: &mut BurstUnit, dir: Dir| {
+        if S::SPARSE {
+            // A unit skipping spikes is due when delivery resumes, or, with `catch_up`, when
+            // any skipped spike is.
+            if !(u.due(due) || (catch_up && u.skipping())) {
+                return;
+            }
+            loop {
+                let e = kernel.burst_emit_run(u, until, run, catch_up);
+                if e.resumed {
+                    sink.resume(cell, dir);
+                }
+                if let Some(spikes) = run.get(..e.n).filter(|s| !s.is_empty()) {
+                    sink.spikes(cell, dir, spikes);
+                }
+                let total = (e.n as u32).saturating_add(e.skipped);
+                if total > 0 {
+                    tally(dir, total);
+                }
+                if (e.n == 0 && !e.resumed) || (!catch_up && !u.due(due)) {
+                    break;
+                }
+            }
+            return;
+        }
         if !u.due(due) {
             return;
         }

@@ -625,6 +625,29 @@ const DONE: u64 = 1 << 63;
 /// [`BurstUnit::te_rel`] of a unit at rest (no drive).
 const AT_REST: i32 = i32::MIN;
 
+/// Bits of a pending [`BurstUnit::next`] above its orbit coordinate (`alpha` stays below 2^45:
+/// rows up to `L / delta`, `L <= 22`) that hold a sparse delivery plan (see
+/// [`Kernel::burst_emit_run`]). Bit 62: the spikes from the pending one on are being
+/// skipped; `next_us` is then the time of the burst's second-to-last spike, where delivery
+/// resumes.
+const SKIPPING: u64 = 1 << 62;
+/// Bits 61..59 of a pending `next`: 0 for a unit delivered spike by spike, else
+/// [`HEAD_DONE`] or the spikes still to deliver before skipping (1 or 2).
+const HEAD_SHIFT: u32 = 59;
+/// The head count's bits.
+const HEAD: u64 = 7 << HEAD_SHIFT;
+/// A sparse unit whose head is out.
+const HEAD_DONE: u64 = 7;
+/// Spikes delivered after each input before skipping: the readout decodes the input from
+/// the first two (the first interval).
+const HEAD_SPIKES: u64 = 2;
+/// Every plan bit.
+const PLAN: u64 = SKIPPING | HEAD;
+/// Skipping starts only at or above this orbit row: delivery resumes when the burst's
+/// second-to-last spike (row 1) is due, with the two last due (rows 2 and 1, then row 0), so
+/// rows down to 3 are skipped: at least two spikes.
+const SKIP_FROM_ROW: u64 = 4;
+
 /// Largest drive level the burst engine represents: `D <= e^22` (`I_T` up to about 10^8
 /// default events' worth); above, `t*` is held at 22 `tau` ahead.
 const LN_D_MAX: u32 = 22;
@@ -650,8 +673,9 @@ pub struct BurstUnit {
     /// `t*`: when `D` is (or was) 1.
     ts: FineTime,
     /// The burst: the next spike to emit, at `t* - tau·r`, given by its Abel coordinate `alpha`
-    /// (Q32.32; `r = r(alpha)`) with the burst tables, else by `r` itself (Q32.32);
-    /// `DONE | alpha` (or `DONE | r`) of the last spike when all are out; `u64::MAX`: no burst.
+    /// (Q32.32; `r = r(alpha)`) with the burst tables, else by `r` itself (Q32.32), and for a
+    /// sparse sink the delivery plan in bits 62..59 ([`SKIPPING`], [`HEAD`]); `DONE | alpha`
+    /// (or `DONE | r`) of the last spike when all are out; `u64::MAX`: no burst.
     next: u64,
     /// `t_e - t*` in 1/256 µs ([`AT_REST`]: no drive at all), clamped to ±2^31: where the
     /// membrane started charging before the burst's first spike (or with no burst). Within a
@@ -659,6 +683,27 @@ pub struct BurstUnit {
     te_rel: i32,
     /// The nearest whole µs of the next spike to emit (while one is pending).
     next_us: u32,
+}
+
+/// What one [`Kernel::burst_emit_run`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Emission {
+    /// Spikes written.
+    pub n: usize,
+    /// Spikes of the burst skipped (counted, not delivered).
+    pub skipped: u32,
+    /// The unit's next spike follows skipped ones: its sink must hear of it before that
+    /// spike.
+    pub resumed: bool,
+}
+
+impl Emission {
+    /// Nothing done.
+    pub const NONE: Self = Self {
+        n: 0,
+        skipped: 0,
+        resumed: false,
+    };
 }
 
 impl Default for BurstUnit {
@@ -680,6 +725,12 @@ impl BurstUnit {
     #[inline(always)]
     pub fn pending(&self) -> bool {
         self.next < DONE
+    }
+
+    /// Whether the unit is skipping spikes of its burst (see [`Kernel::burst_emit_run`]).
+    #[inline(always)]
+    pub fn skipping(&self) -> bool {
+        self.pending() && self.next & SKIPPING != 0
     }
 
     /// The nearest whole µs of the next spike to emit, if one is pending.
@@ -841,7 +892,8 @@ impl Kernel {
 
     /// Writes the unit's pending spikes whose exact time is at or before `until` into `out`,
     /// in order, each at its nearest whole µs, until `out` is full. Returns how many (fewer
-    /// than `out.len()`: all such spikes are out).
+    /// than `out.len()`: all such spikes are out). For a unit delivered spike by spike (no
+    /// plan of [`Kernel::burst_plan_sparse`]).
     #[inline]
     pub fn burst_emit_into(&self, u: &mut BurstUnit, until: FineTime, out: &mut [u32]) -> usize {
         if !u.pending() {
@@ -863,6 +915,152 @@ impl Kernel {
             }
         }
         e.n
+    }
+
+    /// Gives a unit that has just taken an input a sparse delivery plan (with the burst
+    /// tables only; else nothing changes): its next two spikes are delivered as they come,
+    /// then the spikes of its burst are skipped down to its last two, which are delivered
+    /// again (see [`Kernel::burst_emit_run`]).
+    #[inline]
+    pub fn burst_plan_sparse(&self, u: &mut BurstUnit) {
+        if self.orbit && u.pending() {
+            u.next = (u.next & !PLAN) | (HEAD_SPIKES << HEAD_SHIFT);
+        }
+    }
+
+    /// Ends a unit's sparse plan before an input acts on it (the spikes skipped up to the
+    /// input must have been delivered first: [`Kernel::burst_emit_run`] with `catch_up`).
+    #[inline]
+    pub fn burst_plan_end(&self, u: &mut BurstUnit) {
+        if u.pending() && u.next & PLAN != 0 {
+            let skipping = u.next & SKIPPING != 0;
+            u.next &= !PLAN;
+            if skipping {
+                u.next_us = nearest_us(self.spike_time(u, u.next));
+            }
+        }
+    }
+
+    /// [`Kernel::burst_emit_into`] for any unit, planned sparse or not ([`Emission`]).
+    ///
+    /// A sparse unit ([`Kernel::burst_plan_sparse`]) delivers the first two spikes after each
+    /// input, then skips the rest of its burst down to its last two spikes, which it delivers
+    /// as they come: a burst of `n` spikes costs four emissions, not `n`. The skipped spikes
+    /// are counted. With `catch_up` (before an input at `until`, or at the end of a
+    /// recording), a unit that is skipping delivers the last two spikes at or before `until`
+    /// instead, after skipping those before them. Delivery resumes after a skip with
+    /// [`Emission::resumed`] and nothing written; the call after it writes the spikes.
+    #[inline]
+    pub fn burst_emit_run(
+        &self,
+        u: &mut BurstUnit,
+        until: FineTime,
+        out: &mut [u32],
+        catch_up: bool,
+    ) -> Emission {
+        if !u.pending() || u.next & PLAN == 0 {
+            return Emission {
+                n: self.burst_emit_into(u, until, out),
+                skipped: 0,
+                resumed: false,
+            };
+        }
+        self.burst_emit_sparse(u, until, out, catch_up)
+    }
+
+    /// [`Kernel::burst_emit_run`] of a sparse unit.
+    #[inline(never)]
+    fn burst_emit_sparse(
+        &self,
+        u: &mut BurstUnit,
+        until: FineTime,
+        out: &mut [u32],
+        catch_up: bool,
+    ) -> Emission {
+        let alpha = u.next & !PLAN;
+        let frac = alpha & 0xFFFF_FFFF;
+        let mut skip = Emission::NONE;
+        if u.next & SKIPPING != 0 {
+            let row = alpha >> 32;
+            // The row to deliver from: the second-to-last spike due.
+            let target = if catch_up {
+                let ts = u.ts;
+                let at =
+                    |r: u64| ts.wrapping_sub(self.tau_times_r(self.r_emitted((r << 32) | frac)));
+                let late = |t: FineTime| (until.wrapping_sub(t) as i64) < 0;
+                let t_row = at(row);
+                if late(t_row) {
+                    return Emission::NONE;
+                }
+                // Earlier spikes have higher rows: the due ones are those from the lowest due
+                // row up. Find it in (lo, hi] (`lo` not due, `hi` due) by interpolating the
+                // spike times, which fall about evenly over the rows, every other step
+                // halving instead (at most twice as many steps as halving alone).
+                let (mut lo, mut hi) = (0u64, row);
+                let (mut t_lo, mut t_hi) = (at(0), t_row);
+                if late(t_lo) {
+                    let mut halve = false;
+                    while hi.saturating_sub(lo) > 1 {
+                        let width = hi.saturating_sub(lo);
+                        let step = if halve {
+                            width / 2
+                        } else {
+                            let span = u128::from(t_lo.wrapping_sub(t_hi).max(1));
+                            let ahead = u128::from(t_lo.wrapping_sub(until));
+                            let step = u128::from(width).saturating_mul(ahead) / span;
+                            u64::try_from(step).unwrap_or(u64::MAX)
+                        };
+                        // Strictly inside (lo, hi).
+                        let mid = lo.saturating_add(step.max(1).min(width.saturating_sub(1)));
+                        halve = !halve;
+                        let t_mid = at(mid);
+                        if late(t_mid) {
+                            (lo, t_lo) = (mid, t_mid);
+                        } else {
+                            (hi, t_hi) = (mid, t_mid);
+                        }
+                    }
+                    hi.saturating_add(1)
+                } else {
+                    1
+                }
+            } else {
+                // Visited when the burst's second-to-last spike (row 1) is due.
+                2
+            };
+            let target = target.min(row);
+            skip = Emission {
+                n: 0,
+                skipped: u32::try_from(row.saturating_sub(target)).unwrap_or(u32::MAX),
+                resumed: target < row,
+            };
+            u.next = (target << 32) | frac | (HEAD_DONE << HEAD_SHIFT);
+        }
+        let head = (u.next & HEAD) >> HEAD_SHIFT;
+        let cap = if head == HEAD_DONE {
+            out.len()
+        } else {
+            (head as usize).min(out.len())
+        };
+        u.next &= !PLAN;
+        let n = self.burst_emit_into(u, until, out.get_mut(..cap).unwrap_or_default());
+        if u.pending() {
+            let head = match head {
+                HEAD_DONE => HEAD_DONE,
+                h => match h.saturating_sub(n as u64) {
+                    0 => HEAD_DONE,
+                    left => left,
+                },
+            };
+            let row = u.next >> 32;
+            u.next |= head << HEAD_SHIFT;
+            if head == HEAD_DONE && row >= SKIP_FROM_ROW {
+                // Skip until the burst's second-to-last spike is due.
+                u.next |= SKIPPING;
+                u.next_us = nearest_us(self.spike_time(u, (1 << 32) | frac));
+            }
+        }
+        Emission { n, ..skip }
     }
 
     /// [`Kernel::burst_emit_into`] without burst tables: each next spike by Newton's method.

@@ -3,12 +3,14 @@
 //! with Newton's method for parameters the tables were not built for); and the u32 clock wrap.
 
 use core_nostd::event::Event;
+use core_nostd::layout::Dir;
 use core_nostd::layout::{Dense, Layout};
 use core_nostd::network::{
     active_words, Cell, InputFilter, NetSink, NetState, NetStats, Network, Spike, UnitPair,
 };
 use core_nostd::oracle::{OracleNetwork, OracleParams, OracleTde, GRAZE_MARGIN};
 use core_nostd::params::TdeParams;
+use core_nostd::readout::spikes::BurstDecoder;
 use core_nostd::unit::{Kernel, Tde};
 use proptest::prelude::*;
 
@@ -710,4 +712,136 @@ proptest! {
         prop_assert_eq!(s_lazy, s_ahead);
         prop_assert_eq!(lazy.len() as u64, s_ahead.spikes_lr + s_ahead.spikes_rl);
     }
+}
+
+/// A sparse sink ([`NetSink::SPARSE`]): each spike it gets, with its unit and whether it
+/// resumes after skipped spikes.
+#[derive(Default)]
+struct Sparse {
+    spikes: Vec<(u32, u32, bool)>,
+    resumed: Vec<u32>,
+}
+
+impl NetSink for Sparse {
+    const SPIKES: bool = true;
+    const SPARSE: bool = true;
+    fn spike(&mut self, s: Spike) {
+        let id = s.unit_id();
+        let resumed = match self.resumed.iter().position(|&u| u == id) {
+            Some(k) => {
+                self.resumed.swap_remove(k);
+                true
+            }
+            None => false,
+        };
+        self.spikes.push((id, s.t_us, resumed));
+    }
+    fn resume(&mut self, cell: u32, dir: Dir) {
+        let id = cell * 2 + dir.slot() as u32;
+        assert!(!self.resumed.contains(&id), "two resumes without a spike");
+        self.resumed.push(id);
+    }
+}
+
+/// Per unit, its spikes in time order (with the resumed flags, or `false`).
+fn per_unit(spikes: &[(u32, u32, bool)]) -> std::collections::BTreeMap<u32, Vec<(u32, bool)>> {
+    let mut m = std::collections::BTreeMap::<u32, Vec<(u32, bool)>>::new();
+    for &(id, t, r) in spikes {
+        m.entry(id).or_default().push((t, r));
+    }
+    m
+}
+
+/// Runs `train` through the ticking grid with every spike and with a sparse sink, and checks
+/// what the sparse sink gets: a subset of each unit's spikes, told of every gap, with the
+/// counts of all; decoded by the spike readout's decoder, what it decodes from every spike
+/// except inputs it noticed only after the first interval that followed them. Returns the
+/// spikes skipped and the resumptions that came before an input (not at a burst's end).
+fn check_sparse(train: &[(u32, u16, u16)]) -> Result<(usize, usize), TestCaseError> {
+    let mut all = Vec::new();
+    let s_all = run_grid_ticking(train, &mut |s: Spike| {
+        all.push((s.unit_id(), s.t_us, false))
+    });
+    let mut sparse = Sparse::default();
+    let s_sparse = run_grid_ticking(train, &mut sparse);
+    prop_assert_eq!(s_all, s_sparse);
+    prop_assert!(sparse.resumed.is_empty());
+    let (all, got) = (per_unit(&all), per_unit(&sparse.spikes));
+    let dec = BurstDecoder::new(&Kernel::DEFAULT);
+    let (mut skipped, mut mid_burst) = (0usize, 0usize);
+    for (id, full) in &all {
+        let got = got.get(id).map_or(&[][..], |g| &g[..]);
+        // A subsequence of the unit's spikes; `resumed` exactly where spikes were skipped.
+        let mut k = 0usize;
+        for (i, &(t, resumed)) in got.iter().enumerate() {
+            let at = full[k..].iter().position(|&(ft, _)| ft == t);
+            prop_assert!(
+                at.is_some(),
+                "unit {} spike {} at {} not in its train",
+                id,
+                i,
+                t
+            );
+            let at = at.unwrap_or(0);
+            prop_assert_eq!(resumed, at > 0, "unit {} spike {} at {}", id, i, t);
+            skipped += at;
+            k += at + 1;
+            // A resumption that does not end the burst: delivered before an input.
+            if resumed && full.get(k + 1).is_some_and(|&(next, _)| next - t < 30_000) {
+                mid_burst += 1;
+            }
+        }
+        prop_assert_eq!(k, full.len(), "unit {}: its last spikes are delivered", id);
+        let times: Vec<u32> = full.iter().map(|&(t, _)| t).collect();
+        let (mut want, mut have) = (Vec::new(), Vec::new());
+        dec.decode_train(&times, |d| want.push(d));
+        dec.decode_sparse_train(got, |d| have.push(d));
+        let mut w = want.iter();
+        for d in &have {
+            prop_assert!(
+                w.any(|x| x == d),
+                "unit {} decoded {:?} from a sparse train only",
+                id,
+                d
+            );
+        }
+        for d in want.iter().filter(|d| !have.contains(d)) {
+            prop_assert!(!d.from_rest, "unit {} missed {:?}", id, d);
+        }
+    }
+    Ok((skipped, mid_burst))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+
+    /// A sparse sink gets what [`check_sparse`] checks, on random grid trains.
+    #[test]
+    fn sparse_delivery_decodes_as_every_spike(train in grid_train(8, 3)) {
+        check_sparse(&train)?;
+    }
+}
+
+/// Long bursts, and inputs in their middle: the sparse sink skips most spikes, and resumes
+/// before inputs as well as at the bursts' ends.
+#[test]
+fn sparse_delivery_skips_long_bursts() {
+    // An edge sweeping right over row 1, pixels 2 ms apart (the units facing right burst
+    // long), 5 ms after the last; every fifth sweeping left.
+    let mut train = Vec::new();
+    for sweep in 0..20u32 {
+        let xs: Vec<u16> = if sweep % 5 == 4 {
+            (0..8).rev().collect()
+        } else {
+            (0..8).collect()
+        };
+        for (k, &x) in xs.iter().enumerate() {
+            let gap = if k == 0 { 5_000 } else { 2_000 };
+            train.push((gap, x, 1));
+        }
+    }
+    let (skipped, mid_burst) = check_sparse(&train).unwrap();
+    eprintln!("skipped {skipped}, resumptions before an input {mid_burst}");
+    assert!(skipped > 3_000, "{skipped} spikes skipped");
+    assert!(mid_burst > 100, "{mid_burst} resumptions before an input");
 }

@@ -59,6 +59,10 @@ pub trait Readout: NetSink {
     /// A run of spikes of one unit of the `side` network (as [`NetSink::spikes`] for the main
     /// network).
     fn side_spikes(&mut self, _side: Side, _cell: u32, _dir: Dir, _times: &[u32]) {}
+
+    /// [`NetSink::resume`] of a side network (whose sink is as [`NetSink::SPARSE`] as the
+    /// readout's own).
+    fn side_resume(&mut self, _side: Side, _cell: u32, _dir: Dir) {}
 }
 
 /// The sink a side network writes to: the readout's [`Readout::side_spikes`].
@@ -71,6 +75,12 @@ pub struct SideSink<'r, R: Readout> {
 
 impl<R: Readout> NetSink for SideSink<'_, R> {
     const SPIKES: bool = true;
+    const SPARSE: bool = R::SPARSE;
+
+    #[inline]
+    fn resume(&mut self, cell: u32, dir: Dir) {
+        self.readout.side_resume(self.side, cell, dir);
+    }
 
     #[inline]
     fn spike(&mut self, s: Spike) {
