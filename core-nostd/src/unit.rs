@@ -1005,10 +1005,14 @@ impl Kernel {
                         let step = if halve {
                             width / 2
                         } else {
-                            let span = u128::from(t_lo.wrapping_sub(t_hi).max(1));
-                            let ahead = u128::from(t_lo.wrapping_sub(until));
-                            let step = u128::from(width).saturating_mul(ahead) / span;
-                            u64::try_from(step).unwrap_or(u64::MAX)
+                            // width · ahead / span, to 16 bits (a 32-bit division).
+                            let span = t_lo.wrapping_sub(t_hi).max(1);
+                            let cut = (64 - span.leading_zeros()).saturating_sub(16);
+                            let span = (span >> cut).max(1) as u32;
+                            let ahead = (t_lo.wrapping_sub(until) >> cut).min(u64::from(span));
+                            let width32 = u32::try_from(width).unwrap_or(u32::MAX);
+                            let step = width32.saturating_mul(ahead as u32).checked_div(span);
+                            u64::from(step.unwrap_or(0))
                         };
                         // Strictly inside (lo, hi).
                         let mid = lo.saturating_add(step.max(1).min(width.saturating_sub(1)));
@@ -1042,25 +1046,35 @@ impl Kernel {
         } else {
             (head as usize).min(out.len())
         };
-        u.next &= !PLAN;
-        let n = self.burst_emit_into(u, until, out.get_mut(..cap).unwrap_or_default());
-        if u.pending() {
-            let head = match head {
-                HEAD_DONE => HEAD_DONE,
-                h => match h.saturating_sub(n as u64) {
-                    0 => HEAD_DONE,
-                    left => left,
-                },
-            };
-            let row = u.next >> 32;
-            u.next |= head << HEAD_SHIFT;
-            if head == HEAD_DONE && row >= SKIP_FROM_ROW {
+        let alpha = u.next & !PLAN;
+        // As `burst_emit_into`, but the pending spike's time only when delivery does not skip
+        // (when it does, `next_us` is where it resumes).
+        let e = orbit::emit(u.ts, until, alpha, out.get_mut(..cap).unwrap_or_default());
+        let head = match head {
+            HEAD_DONE => HEAD_DONE,
+            h => match h.saturating_sub(e.n as u64) {
+                0 => HEAD_DONE,
+                left => left,
+            },
+        };
+        if e.n == 0 {
+            u.next = alpha | (head << HEAD_SHIFT);
+        } else if e.next == u64::MAX {
+            u.next = DONE | frac;
+        } else {
+            u.next = e.next | (head << HEAD_SHIFT);
+            if head == HEAD_DONE && e.next >> 32 >= SKIP_FROM_ROW {
                 // Skip until the burst's second-to-last spike is due.
                 u.next |= SKIPPING;
                 u.next_us = nearest_us(self.spike_time(u, (1 << 32) | frac));
+            } else {
+                u.next_us = match e.next_us {
+                    Some(t) => t,
+                    None => nearest_us(self.spike_time(u, e.next)),
+                };
             }
         }
-        Emission { n, ..skip }
+        Emission { n: e.n, ..skip }
     }
 
     /// [`Kernel::burst_emit_into`] without burst tables: each next spike by Newton's method.

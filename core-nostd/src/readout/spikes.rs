@@ -91,7 +91,7 @@
 //! (a burst near the refractory limit, whole-µs spike times) is noticed only a few spikes
 //! later with every spike, and decoded then against the wrong interval; here it is not
 //! decoded. On the STM32F405 strip at dev03's rate this takes the spiking pipeline from 761 to
-//! about 430 instructions per event; RMSE / peak moved by -0.3 to +0.4 points on the shared
+//! 426 instructions per event; RMSE / peak moved by -0.3 to +0.4 points on the shared
 //! and regime scenes (drone seed 1: 9.3 → 9.0 %), and by +2.2 on a held-out 1.6 rad/s drone
 //! turn whose fast bursts hid most inputs' first spikes.
 //!
