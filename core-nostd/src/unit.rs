@@ -692,7 +692,7 @@ pub struct Emission {
     pub n: usize,
     /// Spikes of the burst skipped (counted, not delivered).
     pub skipped: u32,
-    /// The unit's next spike follows skipped ones: its sink must hear of it before that
+    /// The first spike written follows skipped ones: the sink must hear of it before that
     /// spike.
     pub resumed: bool,
 }
@@ -944,12 +944,13 @@ impl Kernel {
     /// [`Kernel::burst_emit_into`] for any unit, planned sparse or not ([`Emission`]).
     ///
     /// A sparse unit ([`Kernel::burst_plan_sparse`]) delivers the first two spikes after each
-    /// input, then skips the rest of its burst down to its last two spikes, which it delivers
-    /// as they come: a burst of `n` spikes costs four emissions, not `n`. The skipped spikes
-    /// are counted. With `catch_up` (before an input at `until`, or at the end of a
-    /// recording), a unit that is skipping delivers the last two spikes at or before `until`
-    /// instead, after skipping those before them. Delivery resumes after a skip with
-    /// [`Emission::resumed`] and nothing written; the call after it writes the spikes.
+    /// input, then skips the rest of its burst until its second-to-last spike is due, and
+    /// delivers from the spike before that on as they come: a burst of `n` spikes costs five
+    /// deliveries, not `n`. The skipped spikes are counted. With `catch_up` (before an input
+    /// at `until`, or at the end of a recording), a unit that is skipping delivers the last two
+    /// spikes at or before `until` instead, after skipping those before them. A call that
+    /// resumes after a skip says so ([`Emission::resumed`]) and writes the spikes that follow
+    /// it: the sink must hear of the skip before them.
     #[inline]
     pub fn burst_emit_run(
         &self,
