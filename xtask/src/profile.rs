@@ -120,9 +120,9 @@ impl Profile {
             let share = 100.0 * *n as f64 / self.total.max(1) as f64;
             s.push_str(&format!("{n:>14} {share:>6.2} %  {f}\n"));
         }
-        s.push_str(&format!(
-            "\nhottest blocks (start address; addr2line -e ELF ADDR gives the source line)\n"
-        ));
+        s.push_str(
+            "\nhottest blocks (start address; `llvm-addr2line -i -e ELF ADDR` gives the source lines)\n",
+        );
         for (pc, n, f) in &self.blocks {
             let share = 100.0 * *n as f64 / self.total.max(1) as f64;
             s.push_str(&format!("0x{pc:08x} {n:>14} {share:>6.2} %  {f}\n"));
