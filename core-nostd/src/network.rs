@@ -30,13 +30,13 @@
 //!   once per that span instead of once per tick; an event that changes a unit's burst takes
 //!   back its spikes given beyond the event ([`NetSink::retract`]). The spikes that stay are
 //!   exactly those of emission at the clock (tested).
-//! - A sparse sink ([`NetSink::SPARSE`], the spike readout) gets each burst's first two spikes
-//!   after every input, then the last two spikes before the unit's next input or the burst's
-//!   last two or three, each as it comes; the spikes between are counted, not computed one
-//!   by one (their places on the orbit are known: the burst tables' rows). A burst of `n`
-//!   spikes then costs about five emissions and visits, not `n` (21 spikes per burst on the
+//! - A sparse sink ([`NetSink::SPARSE`], the spike readout) gets the first three spikes of a
+//!   unit after every input, then the last two before the unit's next input or the burst's
+//!   last three, each as it comes; the spikes between are counted, not computed one by one
+//!   (their places on the orbit are known: the burst tables' rows). A burst of `n` spikes
+//!   then costs about six emissions and visits, not `n` (21 spikes per burst on the
 //!   STM32F405's strip at dev03's rate). What the spike readout decodes from them is what it
-//!   decodes from every spike, except inputs it would only have noticed after the first
+//!   decodes from every spike, except inputs it would only have noticed after the second
 //!   interval that followed them (tested).
 //!
 //! # Input filter
@@ -284,12 +284,12 @@ pub trait NetSink {
     /// A spike emitted ahead of the clock that an event has cancelled (the same [`Spike`] as
     /// given to [`NetSink::spike`]; the latest of a unit first).
     fn retract(&mut self, _s: Spike) {}
-    /// Whether this sink takes each burst sparsely: the first two spikes after each input to
-    /// a unit, then (skipping the rest) the last two at or before the unit's next input and
-    /// the last two or three of its burst, each as it comes, the skipped ones counted in
+    /// Whether this sink takes each burst sparsely: the first three spikes after each input
+    /// to a unit, then (skipping the rest) the last two at or before the unit's next input and
+    /// the last three of its burst, each as it comes, the skipped ones counted in
     /// [`NetStats`] (see [`Kernel::burst_emit_run`]). Between the spikes it gets, a burst
-    /// follows its orbit: nothing acted on the unit. For a sink that reads a burst's first
-    /// interval and the intervals around each input, not every spike; only without
+    /// follows its orbit: nothing acted on the unit. For a sink that reads the first intervals
+    /// after each input and the one before it, not every spike; only without
     /// [`NetSink::ahead_us`].
     const SPARSE: bool = false;
     /// With [`NetSink::SPARSE`]: the next spike of unit `dir` at `cell` follows spikes of its

@@ -632,15 +632,16 @@ const AT_REST: i32 = i32::MIN;
 /// resumes.
 const SKIPPING: u64 = 1 << 62;
 /// Bits 61..59 of a pending `next`: 0 for a unit delivered spike by spike, else
-/// [`HEAD_DONE`] or the spikes still to deliver before skipping (1 or 2).
+/// [`HEAD_DONE`] or the spikes still to deliver before skipping (up to [`HEAD_SPIKES`]).
 const HEAD_SHIFT: u32 = 59;
 /// The head count's bits.
 const HEAD: u64 = 7 << HEAD_SHIFT;
 /// A sparse unit whose head is out.
 const HEAD_DONE: u64 = 7;
-/// Spikes delivered after each input before skipping: the readout decodes the input from
-/// the first two (the first interval).
-const HEAD_SPIKES: u64 = 2;
+/// Spikes delivered after each input before skipping: the readout decodes an input from the
+/// first interval after it, or from the second when the input came so late in the first that
+/// its first spike is hardly early (a third of the decodes on a Prophesee Gen3 recording).
+const HEAD_SPIKES: u64 = 3;
 /// Every plan bit.
 const PLAN: u64 = SKIPPING | HEAD;
 /// Skipping starts only at or above this orbit row: delivery resumes when the burst's
@@ -918,7 +919,7 @@ impl Kernel {
     }
 
     /// Gives a unit that has just taken an input a sparse delivery plan (with the burst
-    /// tables only; else nothing changes): its next two spikes are delivered as they come,
+    /// tables only; else nothing changes): its next three spikes are delivered as they come,
     /// then the spikes of its burst are skipped down to its last two, which are delivered
     /// again (see [`Kernel::burst_emit_run`]).
     #[inline]
@@ -943,9 +944,9 @@ impl Kernel {
 
     /// [`Kernel::burst_emit_into`] for any unit, planned sparse or not ([`Emission`]).
     ///
-    /// A sparse unit ([`Kernel::burst_plan_sparse`]) delivers the first two spikes after each
-    /// input, then skips the rest of its burst until its second-to-last spike is due, and
-    /// delivers from the spike before that on as they come: a burst of `n` spikes costs five
+    /// A sparse unit ([`Kernel::burst_plan_sparse`]) delivers the first three spikes after
+    /// each input, then skips the rest of its burst until its second-to-last spike is due, and
+    /// delivers from the spike before that on as they come: a burst of `n` spikes costs six
     /// deliveries, not `n`. The skipped spikes are counted. With `catch_up` (before an input
     /// at `until`, or at the end of a recording), a unit that is skipping delivers the last two
     /// spikes at or before `until` instead, after skipping those before them. A call that

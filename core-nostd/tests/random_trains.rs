@@ -755,7 +755,7 @@ fn per_unit(spikes: &[(u32, u32, bool)]) -> std::collections::BTreeMap<u32, Vec<
 /// Runs `train` through the ticking grid with every spike and with a sparse sink, and checks
 /// what the sparse sink gets: a subset of each unit's spikes, told of every gap, with the
 /// counts of all; decoded by the spike readout's decoder, what it decodes from every spike
-/// except inputs it noticed only after the first interval that followed them. Returns the
+/// except inputs it noticed only after the second interval that followed them. Returns the
 /// spikes skipped and the resumptions that came before an input (not at a burst's end).
 fn check_sparse(train: &[(u32, u16, u16)]) -> Result<(usize, usize), TestCaseError> {
     let mut all = Vec::new();

@@ -81,19 +81,20 @@
 //!
 //! # Which spikes it reads
 //! A decode needs the first interval after a TRG event (from rest: its first two spikes; in
-//! a burst: the early spike and the next), and the interval before it (what the early spike
-//! is early against). Between two inputs a burst follows its orbit, and a spike there says
-//! nothing the interval before it did not. So the readout is a sparse sink
-//! ([`NetSink::SPARSE`]): the network delivers the first two spikes after each input, the
-//! last two before the next input or at the burst's end, and skips the rest, telling the
-//! readout where it did ([`NetSink::resume`]: the next spike only marks where the membrane
-//! restarts). A weak input whose first spike comes within the check's tolerance of the orbit
-//! (a burst near the refractory limit, whole-µs spike times) is noticed only a few spikes
-//! later with every spike, and decoded then against the wrong interval; here it is not
-//! decoded. On the STM32F405 strip at dev03's rate this takes the spiking pipeline from 761 to
-//! 426 instructions per event; RMSE / peak moved by -0.3 to +0.4 points on the shared
-//! and regime scenes (drone seed 1: 9.3 → 9.0 %), and by +2.2 on a held-out 1.6 rad/s drone
-//! turn whose fast bursts hid most inputs' first spikes.
+//! a burst: the early spike and the next), or the second when the event came so late in the
+//! first that its first spike is hardly early (a third of the decodes on a Prophesee Gen3
+//! recording), and the interval before it (what the early spike is early against). Between
+//! two inputs a burst follows its orbit, and a spike there says nothing the interval before
+//! it did not. So the readout is a sparse sink ([`NetSink::SPARSE`]): the network delivers the
+//! first three spikes after each input, the last two before the next input or the last three
+//! of the burst, and skips the rest, telling the readout where it did ([`NetSink::resume`]:
+//! the next spike only marks where the membrane restarts). An input noticed later still (a
+//! burst near the refractory limit, whole-µs spike times) was decoded against the wrong
+//! interval with every spike; here it is not decoded (0.2 % of the decodes on drone seed 1).
+//! On the STM32F405 strip at dev03's rate this takes the spiking pipeline from 761 to 451
+//! instructions per event; RMSE / peak moves by at most 0.6 points on 72 shared, regime and
+//! held-out scenes (a first head of two spikes: drone seed 1 9.3 → 9.0 %, but a held-out
+//! 1.6 rad/s turn 20.3 → 22.5 %, and a third fewer decodes on the Gen3 recording).
 //!
 //! # State
 //! One [`SpikeCell`] per pixel of the layout and network (three networks: 84 bytes per pixel),
@@ -1208,8 +1209,8 @@ impl<L: Layout> NetSink for Spikes<'_, L> {
     const SPIKES: bool = true;
     /// A spike in a burst whose unit no input has reached since its last two spikes says
     /// nothing new: it comes where those two put it (the `CLEAN` state's check). The readout
-    /// reads the first interval after each input and the last one before the next input (or
-    /// the end of the burst), so the network skips the rest.
+    /// reads the first two intervals after each input and the last one before the next input
+    /// (or the end of the burst), so the network skips the rest.
     const SPARSE: bool = true;
 
     fn resume(&mut self, cell: u32, dir: Dir) {
