@@ -1059,7 +1059,9 @@ impl<'a, L: Layout> Network<'a, L> {
                 continue;
             }
             let stats = &mut self.stats;
-            kernel.burst_plan_end(u);
+            if S::SPARSE {
+                kernel.burst_plan_end(u);
+            }
             kernel.burst_retract(u, fine(t_in), |t_us| {
                 uncount(stats, dir);
                 sink.retract(Spike { t_us, cell, dir })
@@ -1266,7 +1268,9 @@ impl<'a, L: Layout> Network<'a, L> {
                 });
                 let cell = c as u32;
                 for (u, dir) in pair.units.iter_mut().zip(Dir::BOTH) {
-                    kernel.burst_plan_end(u);
+                    if S::SPARSE {
+                        kernel.burst_plan_end(u);
+                    }
                     kernel.burst_retract(u, until, |t_us| {
                         uncount(stats, dir);
                         sink.retract(Spike { t_us, cell, dir })

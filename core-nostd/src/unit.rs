@@ -854,7 +854,13 @@ impl Kernel {
     /// The exact time of the spike at `next` (a pending or emitted spike of `u`'s burst).
     #[inline]
     fn spike_time(&self, u: &BurstUnit, next: u64) -> FineTime {
-        u.ts.wrapping_sub(self.tau_times_r(self.r_emitted(next)))
+        self.orbit_time(u.ts, next)
+    }
+
+    /// The exact time of the spike at `next` of a burst with anchor `ts` (`t*`).
+    #[inline]
+    fn orbit_time(&self, ts: FineTime, next: u64) -> FineTime {
+        ts.wrapping_sub(self.tau_times_r(self.r_emitted(next)))
     }
 
     /// The orbit point before `next` (pending spike): the spike emitted before it, or before the
@@ -904,18 +910,29 @@ impl Kernel {
             return self.burst_emit_newton(u, until, out);
         }
         let e = orbit::emit(u.ts, until, u.next, out);
-        if e.n > 0 {
-            if e.next == u64::MAX {
-                u.next = DONE | (u.next & 0xFFFF_FFFF);
-            } else {
-                u.next = e.next;
+        self.advance_past(u, &e, true);
+        e.n
+    }
+
+    /// Moves a unit (its `next` an orbit coordinate without plan bits) past the spikes
+    /// `e` emitted: to the next spike, with its nearest whole µs if `timed`, or to the burst's
+    /// end. Nothing when none was emitted.
+    #[inline]
+    fn advance_past(&self, u: &mut BurstUnit, e: &orbit::Emitted, timed: bool) {
+        if e.n == 0 {
+            return;
+        }
+        if e.next == u64::MAX {
+            u.next = DONE | (u.next & 0xFFFF_FFFF);
+        } else {
+            u.next = e.next;
+            if timed {
                 u.next_us = match e.next_us {
                     Some(t) => t,
                     None => nearest_us(self.spike_time(u, e.next)),
                 };
             }
         }
-        e.n
     }
 
     /// Gives a unit that has just taken an input a sparse delivery plan (with the burst
@@ -963,8 +980,7 @@ impl Kernel {
         if !u.pending() || u.next & PLAN == 0 {
             return Emission {
                 n: self.burst_emit_into(u, until, out),
-                skipped: 0,
-                resumed: false,
+                ..Emission::NONE
             };
         }
         self.burst_emit_sparse(u, until, out, catch_up)
@@ -987,8 +1003,7 @@ impl Kernel {
             // The row to deliver from: the second-to-last spike due.
             let target = if catch_up {
                 let ts = u.ts;
-                let at =
-                    |r: u64| ts.wrapping_sub(self.tau_times_r(self.r_emitted((r << 32) | frac)));
+                let at = |r: u64| self.orbit_time(ts, (r << 32) | frac);
                 let late = |t: FineTime| (until.wrapping_sub(t) as i64) < 0;
                 let t_row = at(row);
                 if late(t_row) {
@@ -1048,10 +1063,8 @@ impl Kernel {
         } else {
             (head as usize).min(out.len())
         };
-        let alpha = u.next & !PLAN;
-        // As `burst_emit_into`, but the pending spike's time only when delivery does not skip
-        // (when it does, `next_us` is where it resumes).
-        let e = orbit::emit(u.ts, until, alpha, out.get_mut(..cap).unwrap_or_default());
+        u.next &= !PLAN;
+        let e = orbit::emit(u.ts, until, u.next, out.get_mut(..cap).unwrap_or_default());
         let head = match head {
             HEAD_DONE => HEAD_DONE,
             h => match h.saturating_sub(e.n as u64) {
@@ -1059,21 +1072,15 @@ impl Kernel {
                 left => left,
             },
         };
-        if e.n == 0 {
-            u.next = alpha | (head << HEAD_SHIFT);
-        } else if e.next == u64::MAX {
-            u.next = DONE | frac;
-        } else {
-            u.next = e.next | (head << HEAD_SHIFT);
-            if head == HEAD_DONE && e.next >> 32 >= SKIP_FROM_ROW {
-                // Skip until the burst's second-to-last spike is due.
+        // Skip until the burst's second-to-last spike is due; then `next_us` is where
+        // delivery resumes, and the pending spike's own time is not needed.
+        let skips = head == HEAD_DONE && e.next != u64::MAX && e.next >> 32 >= SKIP_FROM_ROW;
+        self.advance_past(u, &e, !skips);
+        if u.pending() {
+            u.next |= head << HEAD_SHIFT;
+            if skips {
                 u.next |= SKIPPING;
                 u.next_us = nearest_us(self.spike_time(u, (1 << 32) | frac));
-            } else {
-                u.next_us = match e.next_us {
-                    Some(t) => t,
-                    None => nearest_us(self.spike_time(u, e.next)),
-                };
             }
         }
         Emission { n: e.n, ..skip }

@@ -33,7 +33,7 @@ pub const DEFAULT_LINK_MBIT: f64 = 32.0;
 pub const USAGE: &str = "usage: cargo xtask qemu INPUT --out yaw.csv [--via spi|file] [--live] \
 [--paced] [--link-mbit 32] [--icount-shift 0..3] [--work DIR] [--send-config] [host-sim run \
 flags: --layout, --window X0:Y0:W:H, --stride, --rate-hz, --tau-a-ms, --readout, --unit-pool, --focal-px, \
---cx, --cy, --width W --height H, --format] [--profile FILE: instructions per function, from QEMU's block trace]";
+--cx, --cy, --width W --height H, --format] [--profile FILE: instructions per function and the hottest blocks, from QEMU's block trace]";
 
 /// How the stream reaches the firmware.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -72,8 +72,8 @@ pub struct Qemu {
     /// For an AER stream: the settings (hex) the firmware starts with, instead of those
     /// `host-sim settings` gives for [`Qemu::run_flags`].
     pub start_settings: Option<String>,
-    /// Write the instructions executed per function here ([`crate::profile`]; the run is
-    /// many times slower).
+    /// Write the instructions executed per function and the hottest blocks here
+    /// ([`crate::profile`]; the run is many times slower).
     pub profile: Option<PathBuf>,
 }
 

@@ -91,7 +91,7 @@
 //! the next spike only marks where the membrane restarts). An input noticed later still (a
 //! burst near the refractory limit, whole-µs spike times) was decoded against the wrong
 //! interval with every spike; here it is not decoded (0.2 % of the decodes on drone seed 1).
-//! On the STM32F405 strip at dev03's rate this takes the spiking pipeline from 761 to 451
+//! On the STM32F405 strip at dev03's rate this takes the spiking pipeline from 761 to 456
 //! instructions per event; RMSE / peak moves by at most 0.6 points on 72 shared, regime and
 //! held-out scenes (a first head of two spikes: drone seed 1 9.3 → 9.0 %, but a held-out
 //! 1.6 rad/s turn 20.3 → 22.5 %, and a third fewer decodes on the Gen3 recording).
@@ -260,6 +260,12 @@ impl Track {
     #[inline]
     fn m_us(&self) -> u32 {
         ((self.packed >> 16) & 0x1FFF) << M_SHIFT
+    }
+
+    /// The unit's next spike follows skipped ones ([`state::RESUMED`]).
+    #[inline]
+    fn resume(&mut self) {
+        self.set(state::RESUMED, 0, 0);
     }
 
     #[inline]
@@ -567,22 +573,26 @@ impl BurstDecoder {
 
     /// The TRG events a unit's spike train (in time order, from rest) shows, by the rules of
     /// the readout (the unit tracked alone: no twin, no pixel memory).
-    pub fn decode_train(&self, spikes: &[u32], mut out: impl FnMut(Decoded)) {
-        let mut tr = Track::IDLE;
-        for &t in spikes {
-            if let Some(d) = self.spike(&mut tr, t, true) {
-                out(d);
-            }
-        }
+    pub fn decode_train(&self, spikes: &[u32], out: impl FnMut(Decoded)) {
+        self.decode_delivered(spikes.iter().map(|&t| (t, false)), out);
     }
 
     /// [`BurstDecoder::decode_train`] of the spikes a [`NetSink::SPARSE`] sink gets: each
     /// spike's time and whether it resumes after skipped spikes ([`NetSink::resume`]).
-    pub fn decode_sparse_train(&self, spikes: &[(u32, bool)], mut out: impl FnMut(Decoded)) {
+    pub fn decode_sparse_train(&self, spikes: &[(u32, bool)], out: impl FnMut(Decoded)) {
+        self.decode_delivered(spikes.iter().copied(), out);
+    }
+
+    /// The decodes of a unit's spikes `(time, resumes after skipped spikes)`, from rest.
+    fn decode_delivered(
+        &self,
+        spikes: impl Iterator<Item = (u32, bool)>,
+        mut out: impl FnMut(Decoded),
+    ) {
         let mut tr = Track::IDLE;
-        for &(t, resumed) in spikes {
+        for (t, resumed) in spikes {
             if resumed {
-                tr.set(state::RESUMED, 0, 0);
+                tr.resume();
             }
             if let Some(d) = self.spike(&mut tr, t, true) {
                 out(d);
@@ -804,7 +814,7 @@ impl<'a> Decoding<'a> {
             .get_mut(cell as usize)
             .and_then(|c| c.units.get_mut(dir.slot()))
         {
-            tr.set(state::RESUMED, 0, 0);
+            tr.resume();
         }
     }
 
@@ -1095,6 +1105,15 @@ impl<'a> Decoding<'a> {
 }
 
 impl<'a, L: Layout> Spikes<'a, L> {
+    /// The decoding of side network `side`, if it runs, and the target it decodes into.
+    fn side(&mut self, side: Side) -> (Option<&mut Decoding<'a>>, &mut Target<L>) {
+        let decoding = match side {
+            Side::Slow => self.slow.as_mut(),
+            Side::Near => self.near.as_mut(),
+        };
+        (decoding, &mut self.target)
+    }
+
     /// [`SpikeCell`]s the readout needs for `layout` per population (one per cell).
     pub fn cells_for(layout: &L) -> usize {
         layout.cell_count()
@@ -1234,24 +1253,16 @@ impl<L: Layout> Readout for Spikes<'_, L> {
     const NEAR_UNITS: bool = true;
 
     fn side_spikes(&mut self, side: Side, cell: u32, dir: Dir, times: &[u32]) {
-        let decoding = match side {
-            Side::Slow => self.slow.as_mut(),
-            Side::Near => self.near.as_mut(),
-        };
-        let Some(decoding) = decoding else {
+        let (Some(decoding), target) = self.side(side) else {
             return;
         };
         for &t in times {
-            decoding.spike(&mut self.target, cell, dir, t, None);
+            decoding.spike(target, cell, dir, t, None);
         }
     }
 
     fn side_resume(&mut self, side: Side, cell: u32, dir: Dir) {
-        let decoding = match side {
-            Side::Slow => self.slow.as_mut(),
-            Side::Near => self.near.as_mut(),
-        };
-        if let Some(decoding) = decoding {
+        if let (Some(decoding), _) = self.side(side) {
             decoding.resume(cell, dir);
         }
     }
