@@ -31,10 +31,13 @@
 //!   back its spikes given beyond the event ([`NetSink::retract`]). The spikes that stay are
 //!   exactly those of emission at the clock (tested).
 //! - A sparse sink ([`NetSink::SPARSE`], the spike readout) gets the first three spikes of a
-//!   unit after every input, then the last two before the unit's next input or the burst's
-//!   last three, each as it comes; the spikes between are counted, not computed one by one
+//!   unit after every input as they come. Then the unit leaves the tick's schedule: its
+//!   burst's last two spikes before what next acts on it (its next input, the pool freeing
+//!   its slot, the round-robin settling it, the end of the recording) are delivered then,
+//!   late, or not at all when they are older than the sink still reads
+//!   ([`NetSink::tail_memory_us`]); the spikes between are counted, not computed one by one
 //!   (their places on the orbit are known: the burst tables' rows). A burst of `n` spikes
-//!   then costs about six emissions and visits, not `n` (21 spikes per burst on the
+//!   then costs at most three visits and five emissions, not `n` (21 spikes per burst on the
 //!   STM32F405's strip at dev03's rate). What the spike readout decodes from them is what it
 //!   decodes from every spike, except inputs it would only have noticed after the second
 //!   interval that followed them (tested).
@@ -116,9 +119,11 @@ impl UnitPair {
         self.units.iter().any(|u| !u.is_idle())
     }
 
+    /// Whether a unit has a spike that a tick emits when it is due
+    /// ([`BurstUnit::scheduled`]): the cell stays in the active set while one does.
     #[inline]
-    fn pending(&self) -> bool {
-        self.units.iter().any(BurstUnit::pending)
+    fn scheduled(&self) -> bool {
+        self.units.iter().any(BurstUnit::scheduled)
     }
 
     /// Whether both units are at rest at `t_us` ([`Kernel::burst_at_rest`]): a pool may free
@@ -285,16 +290,24 @@ pub trait NetSink {
     /// given to [`NetSink::spike`]; the latest of a unit first).
     fn retract(&mut self, _s: Spike) {}
     /// Whether this sink takes each burst sparsely: the first three spikes after each input
-    /// to a unit, then (skipping the rest) the last two at or before the unit's next input and
-    /// the last three of its burst, each as it comes, the skipped ones counted in
-    /// [`NetStats`] (see [`Kernel::burst_emit_run`]). Between the spikes it gets, a burst
-    /// follows its orbit: nothing acted on the unit. For a sink that reads the first intervals
-    /// after each input and the one before it, not every spike; only without
-    /// [`NetSink::ahead_us`].
+    /// to a unit as they come; of the rest of the burst only the last two at or before what
+    /// next acts on the unit (its next input, the pool freeing its state, the end of the
+    /// recording), delivered then, after the spikes of other units that came before; and
+    /// those not at all when they came more than [`NetSink::tail_memory_us`] before it. The
+    /// skipped spikes are counted in [`NetStats`] (see [`Kernel::burst_emit_run`]). Between
+    /// the spikes it gets, a burst follows its orbit: nothing acted on the unit. For a sink
+    /// that reads the first intervals after each input and the one before it, not every
+    /// spike; only without [`NetSink::ahead_us`].
     const SPARSE: bool = false;
     /// With [`NetSink::SPARSE`]: the next spike of unit `dir` at `cell` follows spikes of its
     /// burst that were skipped.
     fn resume(&mut self, _cell: u32, _dir: Dir) {}
+    /// With [`NetSink::SPARSE`]: how long (µs) after a unit's last spike the sink still reads
+    /// it (for the next spike's interval). A burst whose last spike is older than this when
+    /// something next acts on the unit delivers nothing more. Default: forever.
+    fn tail_memory_us(&self) -> u32 {
+        u32::MAX
+    }
 }
 
 /// Which FAC pixels the network reads for one event of a sink with [`NetSink::NEAR`].
@@ -1013,13 +1026,14 @@ impl<'a, L: Layout> Network<'a, L> {
             return;
         };
         let (stats, run) = (&mut self.stats, &mut self.run);
+        let catch_up = Some(sink.tail_memory_us());
         emit_pair(
             kernel,
             pair,
             c,
             t_in,
             fine(t_in),
-            true,
+            catch_up,
             sink,
             run,
             |dir, n| count(stats, dir, n),
@@ -1075,7 +1089,7 @@ impl<'a, L: Layout> Network<'a, L> {
                 kernel.burst_plan_sparse(u);
             }
         }
-        if pair.pending() {
+        if pair.scheduled() {
             self.mark_active(s);
         } else if pooled && pair.at_rest(kernel, t_in) {
             // An input too weak to leave anything behind.
@@ -1134,11 +1148,14 @@ impl<'a, L: Layout> Network<'a, L> {
     }
 
     /// Moves cell `c`'s clock (and its units' drive) forward to `t`; nothing when the cell is
-    /// ahead of `t`.
-    fn advance_cell(&mut self, c: usize, t: u32) {
+    /// ahead of `t`. Units at rest are settled, or their slot freed.
+    fn advance_cell<S: NetSink>(&mut self, c: usize, t: u32, sink: &mut S) {
         let kernel = self.kernel;
         let pooled = self.pool.is_some();
         let slot = self.slot(c);
+        if let Some(s) = slot {
+            self.finish_skipping(c, s, t, sink);
+        }
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };
@@ -1170,8 +1187,42 @@ impl<'a, L: Layout> Network<'a, L> {
         }
     }
 
+    /// Before the units of slot `s` (cell `c`) are settled or freed at `t`: a skipping unit
+    /// whose burst is over ([`Kernel::burst_at_rest`]) delivers what its sparse sink still
+    /// reads of it (a catch-up of [`Kernel::burst_emit_run`]).
+    #[inline]
+    fn finish_skipping<S: NetSink>(&mut self, c: usize, s: usize, t: u32, sink: &mut S) {
+        if !S::SPARSE {
+            return;
+        }
+        let kernel = self.kernel;
+        let Some(pair) = self.units.get_mut(s) else {
+            return;
+        };
+        if !pair
+            .units
+            .iter()
+            .any(|u| u.skipping() && kernel.burst_at_rest(u, t))
+        {
+            return;
+        }
+        let catch_up = Some(sink.tail_memory_us());
+        let (stats, run) = (&mut self.stats, &mut self.run);
+        emit_pair(
+            kernel,
+            pair,
+            c,
+            t,
+            fine(t),
+            catch_up,
+            sink,
+            run,
+            |dir, n| count(stats, dir, n),
+        );
+    }
+
     /// The pool's sweep for this period: slots whose units are all at rest at `t` are freed.
-    fn sweep_pool(&mut self, t: u32) {
+    fn sweep_pool<S: NetSink>(&mut self, t: u32, sink: &mut S) {
         let Some(((start, count), cap)) = self
             .pool
             .as_mut()
@@ -1185,6 +1236,7 @@ impl<'a, L: Layout> Network<'a, L> {
                 continue;
             };
             if self.units.get(s).is_some_and(|p| p.at_rest(self.kernel, t)) {
+                self.finish_skipping(c, s, t, sink);
                 self.release(c, s);
             }
         }
@@ -1232,20 +1284,20 @@ impl<'a, L: Layout> Network<'a, L> {
                         continue;
                     };
                     let (stats, run) = (&mut self.stats, &mut self.run);
-                    emit_pair(kernel, pair, c, due, until, false, sink, run, |dir, n| {
+                    emit_pair(kernel, pair, c, due, until, None, sink, run, |dir, n| {
                         count(stats, dir, n)
                     });
-                    if !pair.pending() {
+                    if !pair.scheduled() {
                         *word &= !(1 << b);
                     }
                 }
             }
-            self.sweep_pool(t);
+            self.sweep_pool(t, sink);
         }
         if !self.cells.is_empty() {
             let c = self.refresh % self.cells.len();
             self.refresh = c + 1;
-            self.advance_cell(c, t);
+            self.advance_cell(c, t, sink);
         }
     }
 
@@ -1263,7 +1315,8 @@ impl<'a, L: Layout> Network<'a, L> {
                     continue;
                 };
                 let (stats, run) = (&mut self.stats, &mut self.run);
-                emit_pair(kernel, pair, c, t, until, true, sink, run, |dir, n| {
+                let catch_up = Some(sink.tail_memory_us());
+                emit_pair(kernel, pair, c, t, until, catch_up, sink, run, |dir, n| {
                     count(stats, dir, n)
                 });
                 let cell = c as u32;
@@ -1276,7 +1329,7 @@ impl<'a, L: Layout> Network<'a, L> {
                         sink.retract(Spike { t_us, cell, dir })
                     });
                 }
-                if pair.pending() {
+                if pair.scheduled() {
                     if let Some(w) = self.active.get_mut(s / 32) {
                         *w |= 1 << (s % 32);
                     }
@@ -1284,7 +1337,7 @@ impl<'a, L: Layout> Network<'a, L> {
             }
         }
         for c in 0..self.cells.len() {
-            self.advance_cell(c, t);
+            self.advance_cell(c, t, sink);
         }
     }
 
@@ -1297,6 +1350,8 @@ impl<'a, L: Layout> Network<'a, L> {
 /// Emits the spikes of both units of cell `c` whose exact time is at or before `until`, for
 /// units whose next spike is reported at or before `due`, in runs of up to [`SPIKE_RUN`] per
 /// unit ([`NetSink::spikes`], through the scratch buffer `run`); `tally(dir, n)` counts them.
+/// `catch_up` (the sink's [`NetSink::tail_memory_us`]): skipping units deliver what they
+/// skipped up to `until` too ([`Kernel::burst_emit_run`]).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
@@ -1305,7 +1360,7 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
     c: usize,
     due: u32,
     until: FineTime,
-    catch_up: bool,
+    catch_up: Option<u32>,
     sink: &mut S,
     run: &mut [u32; SPIKE_RUN],
     mut tally: T,
@@ -1315,9 +1370,8 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
     // Each unit by name (an array of the two would be iterated by index on every visit).
     let mut unit = |u: &mut BurstUnit, dir: Dir| {
         if S::SPARSE {
-            // A unit skipping spikes is due when delivery resumes, or, with `catch_up`, when
-            // any skipped spike is.
-            if !(u.due(due) || (catch_up && u.skipping())) {
+            // A skipping unit is never due; with `catch_up` it delivers what it skipped.
+            if !(u.due(due) || (catch_up.is_some() && u.skipping())) {
                 return;
             }
             loop {
@@ -1332,7 +1386,7 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
                 if total > 0 {
                     tally(dir, total);
                 }
-                if (e.n == 0 && !e.resumed) || (!catch_up && !u.due(due)) {
+                if (e.n == 0 && !e.resumed) || (catch_up.is_none() && !u.due(due)) {
                     break;
                 }
             }

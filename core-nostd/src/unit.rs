@@ -628,8 +628,8 @@ const AT_REST: i32 = i32::MIN;
 /// Bits of a pending [`BurstUnit::next`] above its orbit coordinate (`alpha` stays below 2^45:
 /// rows up to `L / delta`, `L <= 22`) that hold a sparse delivery plan (see
 /// [`Kernel::burst_emit_run`]). Bit 62: the spikes from the pending one on are being
-/// skipped; `next_us` is then the time of the burst's second-to-last spike, where delivery
-/// resumes.
+/// skipped, and no tick visits the unit (`next_us` means nothing): what the sink needs of
+/// them is delivered when something next acts on the unit.
 const SKIPPING: u64 = 1 << 62;
 /// Bits 61..59 of a pending `next`: 0 for a unit delivered spike by spike, else
 /// [`HEAD_DONE`] or the spikes still to deliver before skipping (up to [`HEAD_SPIKES`]).
@@ -644,10 +644,6 @@ const HEAD_DONE: u64 = 7;
 const HEAD_SPIKES: u64 = 3;
 /// Every plan bit.
 const PLAN: u64 = SKIPPING | HEAD;
-/// Skipping starts only at or above this orbit row: delivery resumes when the burst's
-/// second-to-last spike (row 1) is due, with the two last due (rows 2 and 1, then row 0), so
-/// rows down to 3 are skipped: at least two spikes.
-const SKIP_FROM_ROW: u64 = 4;
 
 /// Largest drive level the burst engine represents: `D <= e^22` (`I_T` up to about 10^8
 /// default events' worth); above, `t*` is held at 22 `tau` ahead.
@@ -734,16 +730,23 @@ impl BurstUnit {
         self.pending() && self.next & SKIPPING != 0
     }
 
-    /// The nearest whole µs of the next spike to emit, if one is pending.
+    /// Whether a spike is pending that a tick emits when it is due: pending, and not
+    /// [skipping](BurstUnit::skipping).
     #[inline(always)]
-    pub fn next_us(&self) -> Option<u32> {
-        self.pending().then_some(self.next_us)
+    pub fn scheduled(&self) -> bool {
+        self.next < SKIPPING
     }
 
-    /// Whether a spike is pending that is reported at or before `t_us` (no branch).
+    /// The nearest whole µs of the next spike to emit, if one is [scheduled](Self::scheduled).
+    #[inline(always)]
+    pub fn next_us(&self) -> Option<u32> {
+        self.scheduled().then_some(self.next_us)
+    }
+
+    /// Whether a spike is scheduled that is reported at or before `t_us` (no branch).
     #[inline(always)]
     pub fn due(&self, t_us: u32) -> bool {
-        self.pending() & ((t_us.wrapping_sub(self.next_us) as i32) >= 0)
+        self.scheduled() & ((t_us.wrapping_sub(self.next_us) as i32) >= 0)
     }
 
     /// Whether the unit has no drive at all (the state [`BurstUnit::IDLE`]; see also
@@ -780,17 +783,20 @@ impl Kernel {
         self.orbit
     }
 
-    /// Whether the unit is at rest at `t_us`: idle, or its burst is out and its drive level
-    /// is below `2^-`[`REST_LEVEL_LOG2`]. A network with a unit pool counts such a unit as
-    /// [`BurstUnit::IDLE`] (an input starts it afresh) and frees its state. No spike of its
-    /// burst lies at or after `t_us`. `t_us` must not precede the unit's last input.
+    /// Whether the unit is at rest at `t_us`: idle, or its burst is out (or
+    /// [skipping](BurstUnit::skipping): its spikes then all lie before `t*`) and its drive
+    /// level is below `2^-`[`REST_LEVEL_LOG2`]. A network with a unit pool counts such a unit
+    /// as [`BurstUnit::IDLE`] (an input starts it afresh) and frees its state, once a skipping
+    /// unit has delivered what its sink needs ([`Kernel::burst_emit_run`] with a catch-up). No
+    /// spike of its burst lies at or after `t_us`. `t_us` must not precede the unit's last
+    /// input.
     #[inline]
     pub fn burst_at_rest(&self, u: &BurstUnit, t_us: u32) -> bool {
         if u.is_idle() {
             return true;
         }
         let rest_from = u.ts.wrapping_add(self.rest_after_fine);
-        !u.pending() && (fine(t_us).wrapping_sub(rest_from) as i64) >= 0
+        (!u.pending() || u.skipping()) && (fine(t_us).wrapping_sub(rest_from) as i64) >= 0
     }
 
     /// Brings a unit whose drive has become negligible (`D < 2^-32`) at `t_us` to rest, so
@@ -937,8 +943,7 @@ impl Kernel {
 
     /// Gives a unit that has just taken an input a sparse delivery plan (with the burst
     /// tables only; else nothing changes): its next three spikes are delivered as they come,
-    /// then the spikes of its burst are skipped down to its last two, which are delivered
-    /// again (see [`Kernel::burst_emit_run`]).
+    /// then the rest of its burst is skipped (see [`Kernel::burst_emit_run`]).
     #[inline]
     pub fn burst_plan_sparse(&self, u: &mut BurstUnit) {
         if self.orbit && u.pending() {
@@ -947,7 +952,7 @@ impl Kernel {
     }
 
     /// Ends a unit's sparse plan before an input acts on it (the spikes skipped up to the
-    /// input must have been delivered first: [`Kernel::burst_emit_run`] with `catch_up`).
+    /// input must have been delivered first: [`Kernel::burst_emit_run`] with a catch-up).
     #[inline]
     pub fn burst_plan_end(&self, u: &mut BurstUnit) {
         if u.pending() && u.next & PLAN != 0 {
@@ -962,20 +967,22 @@ impl Kernel {
     /// [`Kernel::burst_emit_into`] for any unit, planned sparse or not ([`Emission`]).
     ///
     /// A sparse unit ([`Kernel::burst_plan_sparse`]) delivers the first three spikes after
-    /// each input, then skips the rest of its burst until its second-to-last spike is due, and
-    /// delivers from the spike before that on as they come: a burst of `n` spikes costs six
-    /// deliveries, not `n`. The skipped spikes are counted. With `catch_up` (before an input
-    /// at `until`, or at the end of a recording), a unit that is skipping delivers the last two
-    /// spikes at or before `until` instead, after skipping those before them. A call that
-    /// resumes after a skip says so ([`Emission::resumed`]) and writes the spikes that follow
-    /// it: the sink must hear of the skip before them.
+    /// each input as they come, then skips the rest of its burst: no tick visits it. A
+    /// catch-up (`catch_up = Some(memory_us)`: before an input at `until`, before the unit's
+    /// state is freed or settled, at the end of a recording) delivers the last two spikes at
+    /// or before `until` instead, after skipping those before them; or nothing, when the
+    /// burst's last spike came more than `memory_us` before `until` (the sink no longer reads
+    /// it: [`crate::network::NetSink::tail_memory_us`]). A burst of `n` spikes thus costs at
+    /// most five deliveries, not `n`; the skipped spikes are counted. A call that resumes after
+    /// a skip says so ([`Emission::resumed`]) and writes the spikes that follow it: the sink
+    /// must hear of the skip before them. Without a catch-up a skipping unit does nothing.
     #[inline]
     pub fn burst_emit_run(
         &self,
         u: &mut BurstUnit,
         until: FineTime,
         out: &mut [u32],
-        catch_up: bool,
+        catch_up: Option<u32>,
     ) -> Emission {
         if !u.pending() || u.next & PLAN == 0 {
             return Emission {
@@ -993,15 +1000,18 @@ impl Kernel {
         u: &mut BurstUnit,
         until: FineTime,
         out: &mut [u32],
-        catch_up: bool,
+        catch_up: Option<u32>,
     ) -> Emission {
         let alpha = u.next & !PLAN;
         let frac = alpha & 0xFFFF_FFFF;
         let mut skip = Emission::NONE;
         if u.next & SKIPPING != 0 {
+            let Some(memory_us) = catch_up else {
+                return Emission::NONE;
+            };
             let row = alpha >> 32;
             // The row to deliver from: the second-to-last spike due.
-            let target = if catch_up {
+            let target = {
                 let ts = u.ts;
                 let at = |r: u64| self.orbit_time(ts, (r << 32) | frac);
                 let late = |t: FineTime| (until.wrapping_sub(t) as i64) < 0;
@@ -1042,12 +1052,17 @@ impl Kernel {
                         }
                     }
                     hi.saturating_add(1)
+                } else if until.wrapping_sub(t_lo) > fine(memory_us) {
+                    // The burst is over, its last spike beyond the sink's memory: nothing to
+                    // deliver.
+                    u.next = DONE | frac;
+                    return Emission {
+                        skipped: u32::try_from(row.saturating_add(1)).unwrap_or(u32::MAX),
+                        ..Emission::NONE
+                    };
                 } else {
                     1
                 }
-            } else {
-                // Visited when the burst's second-to-last spike (row 1) is due.
-                2
             };
             let target = target.min(row);
             skip = Emission {
@@ -1072,15 +1087,13 @@ impl Kernel {
                 left => left,
             },
         };
-        // Skip until the burst's second-to-last spike is due; then `next_us` is where
-        // delivery resumes, and the pending spike's own time is not needed.
-        let skips = head == HEAD_DONE && e.next != u64::MAX && e.next >> 32 >= SKIP_FROM_ROW;
+        // With the head out, skip the rest: the pending spike's time is not needed.
+        let skips = head == HEAD_DONE && e.next != u64::MAX;
         self.advance_past(u, &e, !skips);
         if u.pending() {
             u.next |= head << HEAD_SHIFT;
             if skips {
                 u.next |= SKIPPING;
-                u.next_us = nearest_us(self.spike_time(u, (1 << 32) | frac));
             }
         }
         Emission { n: e.n, ..skip }

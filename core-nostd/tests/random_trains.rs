@@ -715,11 +715,13 @@ proptest! {
 }
 
 /// A sparse sink ([`NetSink::SPARSE`]): each spike it gets, with its unit and whether it
-/// resumes after skipped spikes.
+/// resumes after skipped spikes; it reads a burst's last spikes for `memory` µs (`None`:
+/// forever).
 #[derive(Default)]
 struct Sparse {
     spikes: Vec<(u32, u32, bool)>,
     resumed: Vec<u32>,
+    memory: Option<u32>,
 }
 
 impl NetSink for Sparse {
@@ -741,6 +743,9 @@ impl NetSink for Sparse {
         assert!(!self.resumed.contains(&id), "two resumes without a spike");
         self.resumed.push(id);
     }
+    fn tail_memory_us(&self) -> u32 {
+        self.memory.unwrap_or(u32::MAX)
+    }
 }
 
 /// Per unit, its spikes in time order (with the resumed flags, or `false`).
@@ -752,17 +757,25 @@ fn per_unit(spikes: &[(u32, u32, bool)]) -> std::collections::BTreeMap<u32, Vec<
     m
 }
 
-/// Runs `train` through the ticking grid with every spike and with a sparse sink, and checks
-/// what the sparse sink gets: a subset of each unit's spikes, told of every gap, with the
-/// counts of all; decoded by the spike readout's decoder, what it decodes from every spike
-/// except inputs it noticed only after the second interval that followed them. Returns the
-/// spikes skipped and the resumptions that came before an input (not at a burst's end).
-fn check_sparse(train: &[(u32, u16, u16)]) -> Result<(usize, usize), TestCaseError> {
+/// Runs `train` through the ticking grid with every spike and with a sparse sink that reads
+/// a burst's last spikes for `memory` µs, and checks what the sparse sink gets: a subset of
+/// each unit's spikes, told of every gap but those that end spikes older than `memory`
+/// (not delivered at all), with the counts of all; decoded by the spike readout's decoder,
+/// what it decodes from every spike except inputs it noticed only after the second interval
+/// that followed them. Returns the spikes skipped and the resumptions that came before an
+/// input (not at a burst's end).
+fn check_sparse(
+    train: &[(u32, u16, u16)],
+    memory: Option<u32>,
+) -> Result<(usize, usize), TestCaseError> {
     let mut all = Vec::new();
     let s_all = run_grid_ticking(train, &mut |s: Spike| {
         all.push((s.unit_id(), s.t_us, false))
     });
-    let mut sparse = Sparse::default();
+    let mut sparse = Sparse {
+        memory,
+        ..Sparse::default()
+    };
     let s_sparse = run_grid_ticking(train, &mut sparse);
     prop_assert_eq!(s_all, s_sparse);
     prop_assert!(sparse.resumed.is_empty());
@@ -783,7 +796,22 @@ fn check_sparse(train: &[(u32, u16, u16)]) -> Result<(usize, usize), TestCaseErr
                 t
             );
             let at = at.unwrap_or(0);
-            prop_assert_eq!(resumed, at > 0, "unit {} spike {} at {}", id, i, t);
+            // A gap without a resumption: spikes older than `memory` were not delivered.
+            let forgotten = !resumed
+                && at > 0
+                && memory.is_some_and(|m| {
+                    full.get(k + at - 1)
+                        .is_some_and(|&(last, _)| t - last >= m.saturating_sub(1))
+                });
+            prop_assert!(
+                resumed == (at > 0) || forgotten,
+                "unit {} spike {} at {}: resumed {}, {} skipped",
+                id,
+                i,
+                t,
+                resumed,
+                at
+            );
             skipped += at;
             k += at + 1;
             // A resumption that does not end the burst: delivered before an input.
@@ -791,7 +819,9 @@ fn check_sparse(train: &[(u32, u16, u16)]) -> Result<(usize, usize), TestCaseErr
                 mid_burst += 1;
             }
         }
-        prop_assert_eq!(k, full.len(), "unit {}: its last spikes are delivered", id);
+        if memory.is_none() {
+            prop_assert_eq!(k, full.len(), "unit {}: its last spikes are delivered", id);
+        }
         let times: Vec<u32> = full.iter().map(|&(t, _)| t).collect();
         let (mut want, mut have) = (Vec::new(), Vec::new());
         dec.decode_train(&times, |d| want.push(d));
@@ -818,7 +848,16 @@ proptest! {
     /// A sparse sink gets what [`check_sparse`] checks, on random grid trains.
     #[test]
     fn sparse_delivery_decodes_as_every_spike(train in grid_train(8, 3)) {
-        check_sparse(&train)?;
+        check_sparse(&train, None)?;
+    }
+
+    /// So does one that forgets bursts as the spike readout does.
+    #[test]
+    fn sparse_delivery_with_the_readouts_memory_decodes_as_every_spike(
+        train in grid_train(8, 3)
+    ) {
+        let memory = BurstDecoder::new(&Kernel::DEFAULT).tail_memory_us();
+        check_sparse(&train, Some(memory))?;
     }
 }
 
@@ -840,8 +879,11 @@ fn sparse_delivery_skips_long_bursts() {
             train.push((gap, x, 1));
         }
     }
-    let (skipped, mid_burst) = check_sparse(&train).unwrap();
-    eprintln!("skipped {skipped}, resumptions before an input {mid_burst}");
-    assert!(skipped > 3_000, "{skipped} spikes skipped");
-    assert!(mid_burst > 100, "{mid_burst} resumptions before an input");
+    let memory = BurstDecoder::new(&Kernel::DEFAULT).tail_memory_us();
+    for memory in [None, Some(memory)] {
+        let (skipped, mid_burst) = check_sparse(&train, memory).unwrap();
+        eprintln!("memory {memory:?}: skipped {skipped}, resumptions before an input {mid_burst}");
+        assert!(skipped > 3_000, "{skipped} spikes skipped");
+        assert!(mid_burst > 100, "{mid_burst} resumptions before an input");
+    }
 }

@@ -83,6 +83,11 @@ impl<R: Readout> NetSink for SideSink<'_, R> {
     }
 
     #[inline]
+    fn tail_memory_us(&self) -> u32 {
+        self.readout.tail_memory_us()
+    }
+
+    #[inline]
     fn spike(&mut self, s: Spike) {
         self.readout
             .side_spikes(self.side, s.cell, s.dir, &[s.t_us]);

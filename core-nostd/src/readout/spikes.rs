@@ -86,15 +86,19 @@
 //! recording), and the interval before it (what the early spike is early against). Between
 //! two inputs a burst follows its orbit, and a spike there says nothing the interval before
 //! it did not. So the readout is a sparse sink ([`NetSink::SPARSE`]): the network delivers the
-//! first three spikes after each input, the last two before the next input or the last three
-//! of the burst, and skips the rest, telling the readout where it did ([`NetSink::resume`]:
-//! the next spike only marks where the membrane restarts). An input noticed later still (a
-//! burst near the refractory limit, whole-µs spike times) was decoded against the wrong
-//! interval with every spike; here it is not decoded (0.2 % of the decodes on drone seed 1).
-//! On the STM32F405 strip at dev03's rate this takes the spiking pipeline from 761 to 456
-//! instructions per event; RMSE / peak moves by at most 0.6 points on 72 shared, regime and
-//! held-out scenes (a first head of two spikes: drone seed 1 9.3 → 9.0 %, but a held-out
-//! 1.6 rad/s turn 20.3 → 22.5 %, and a third fewer decodes on the Gen3 recording).
+//! first three spikes after each input as they come, and skips the rest, telling the readout
+//! where it did ([`NetSink::resume`]: the next spike only marks where the membrane restarts).
+//! The last interval before the next input matters only to that input's decode, so the
+//! burst's last two spikes before it are delivered when it comes (or when the unit's state is
+//! freed, or at the end), and not at all when by then they are older than
+//! `M_MAX_US + t_ref` ([`NetSink::tail_memory_us`]: a spike that long after the last starts
+//! afresh whatever came before). An input noticed later still (a burst near the refractory
+//! limit, whole-µs spike times) was decoded against the wrong interval with every spike; here
+//! it is not decoded (0.2 % of the decodes on drone seed 1). On the STM32F405 strip at dev03's
+//! rate this takes the spiking pipeline from 761 to 376 instructions per event; RMSE / peak
+//! moves by at most 0.6 points on 72 shared, regime and held-out scenes (a first head of two
+//! spikes: drone seed 1 9.3 → 9.0 %, but a held-out 1.6 rad/s turn 20.3 → 22.5 %, and a third
+//! fewer decodes on the Gen3 recording).
 //!
 //! # State
 //! One [`SpikeCell`] per pixel of the layout and network (three networks: 84 bytes per pixel),
@@ -481,6 +485,14 @@ impl BurstDecoder {
             .saturating_neg()
             .saturating_sub(l2_l)
             .saturating_sub(self.l2_tref)
+    }
+
+    /// How long (µs) after a unit's last spike the decoder still reads it: a spike more than
+    /// `M_MAX_US` after the start of the charge before it (the last spike plus `t_ref`) starts
+    /// afresh whatever came before, and one µs more covers the rounding of spike times
+    /// ([`NetSink::tail_memory_us`]).
+    pub fn tail_memory_us(&self) -> u32 {
+        M_MAX_US.saturating_add(self.t_ref_us).saturating_add(1)
     }
 
     /// `log2` of the smallest drive that makes a burst from rest (Q16.16).
@@ -1228,12 +1240,17 @@ impl<L: Layout> NetSink for Spikes<'_, L> {
     const SPIKES: bool = true;
     /// A spike in a burst whose unit no input has reached since its last two spikes says
     /// nothing new: it comes where those two put it (the `CLEAN` state's check). The readout
-    /// reads the first two intervals after each input and the last one before the next input
-    /// (or the end of the burst), so the network skips the rest.
+    /// reads the first intervals after each input and the last one before the next input, so
+    /// the network skips the rest.
     const SPARSE: bool = true;
 
     fn resume(&mut self, cell: u32, dir: Dir) {
         self.fast.resume(cell, dir);
+    }
+
+    /// [`BurstDecoder::tail_memory_us`] (the three networks' units have one `t_ref`).
+    fn tail_memory_us(&self) -> u32 {
+        self.fast.decoder.tail_memory_us()
     }
 
     fn spike(&mut self, s: Spike) {
