@@ -628,8 +628,8 @@ const AT_REST: i32 = i32::MIN;
 /// Bits of a pending [`BurstUnit::next`] above its orbit coordinate (`alpha` stays below 2^45:
 /// rows up to `L / delta`, `L <= 22`) that hold a sparse delivery plan (see
 /// [`Kernel::burst_emit_run`]). Bit 62: the spikes from the pending one on are being
-/// skipped, and no tick visits the unit (`next_us` means nothing): what the sink needs of
-/// them is delivered when something next acts on the unit.
+/// skipped, and no tick visits the unit (`next_us` stays the pending spike's nearest µs): what
+/// the sink needs of them is delivered when something next acts on the unit.
 const SKIPPING: u64 = 1 << 62;
 /// Bits 61..59 of a pending `next`: 0 for a unit delivered spike by spike, else
 /// [`HEAD_DONE`] or the spikes still to deliver before skipping (up to [`HEAD_SPIKES`]).
@@ -916,15 +916,15 @@ impl Kernel {
             return self.burst_emit_newton(u, until, out);
         }
         let e = orbit::emit(u.ts, until, u.next, out);
-        self.advance_past(u, &e, true);
+        self.advance_past(u, &e);
         e.n
     }
 
     /// Moves a unit (its `next` an orbit coordinate without plan bits) past the spikes
-    /// `e` emitted: to the next spike, with its nearest whole µs if `timed`, or to the burst's
-    /// end. Nothing when none was emitted.
+    /// `e` emitted: to the next spike, with its nearest whole µs, or to the burst's end.
+    /// Nothing when none was emitted.
     #[inline]
-    fn advance_past(&self, u: &mut BurstUnit, e: &orbit::Emitted, timed: bool) {
+    fn advance_past(&self, u: &mut BurstUnit, e: &orbit::Emitted) {
         if e.n == 0 {
             return;
         }
@@ -932,12 +932,10 @@ impl Kernel {
             u.next = DONE | (u.next & 0xFFFF_FFFF);
         } else {
             u.next = e.next;
-            if timed {
-                u.next_us = match e.next_us {
-                    Some(t) => t,
-                    None => nearest_us(self.spike_time(u, e.next)),
-                };
-            }
+            u.next_us = match e.next_us {
+                Some(t) => t,
+                None => nearest_us(self.spike_time(u, e.next)),
+            };
         }
     }
 
@@ -955,12 +953,9 @@ impl Kernel {
     /// input must have been delivered first: [`Kernel::burst_emit_run`] with a catch-up).
     #[inline]
     pub fn burst_plan_end(&self, u: &mut BurstUnit) {
-        if u.pending() && u.next & PLAN != 0 {
-            let skipping = u.next & SKIPPING != 0;
+        if u.pending() {
+            // A skipping unit's `next_us` is its pending spike's already.
             u.next &= !PLAN;
-            if skipping {
-                u.next_us = nearest_us(self.spike_time(u, u.next));
-            }
         }
     }
 
@@ -1010,11 +1005,16 @@ impl Kernel {
                 return Emission::NONE;
             };
             let row = alpha >> 32;
+            let late = |t: FineTime| (until.wrapping_sub(t) as i64) < 0;
+            // The pending spike lies within half a µs of `next_us`: most catch-ups come
+            // before it (an input to the unit's twin, say) and need no more.
+            if late(fine(u.next_us).wrapping_sub(1 << 31)) {
+                return Emission::NONE;
+            }
             // The row to deliver from: the second-to-last spike due.
             let target = {
                 let ts = u.ts;
                 let at = |r: u64| self.orbit_time(ts, (r << 32) | frac);
-                let late = |t: FineTime| (until.wrapping_sub(t) as i64) < 0;
                 let t_row = at(row);
                 if late(t_row) {
                     return Emission::NONE;
@@ -1087,9 +1087,9 @@ impl Kernel {
                 left => left,
             },
         };
-        // With the head out, skip the rest: the pending spike's time is not needed.
+        // With the head out, skip the rest.
         let skips = head == HEAD_DONE && e.next != u64::MAX;
-        self.advance_past(u, &e, !skips);
+        self.advance_past(u, &e);
         if u.pending() {
             u.next |= head << HEAD_SHIFT;
             if skips {

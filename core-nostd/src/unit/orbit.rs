@@ -176,8 +176,8 @@ pub(super) struct Emitted {
     pub next: u64,
     /// Spikes written.
     pub n: usize,
-    /// The nearest whole µs of the pending spike, when `emit` stopped at it (it lies beyond
-    /// `until`); `None` when the burst is over or `out` is full.
+    /// The nearest whole µs of the pending spike (beyond `until`, or the first that did not
+    /// fit in `out`); `None` when the burst is over.
     pub next_us: Option<u32>,
 }
 
@@ -216,7 +216,7 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
                 return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
             }
             let Some(slot) = out.get_mut(n) else {
-                return pending(row, n, None);
+                return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
             };
             *slot = (round.wrapping_sub(p) >> 32) as u32;
             n += 1;
@@ -247,7 +247,7 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
                 return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
             }
             let Some(slot) = out.get_mut(n) else {
-                return pending(row, n, None);
+                return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
             };
             *slot = (round.wrapping_sub(p) >> 32) as u32;
             n += 1;
@@ -263,7 +263,7 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
         return pending(0, n, Some((round.wrapping_sub(p) >> 32) as u32));
     }
     let Some(slot) = out.get_mut(n) else {
-        return pending(0, n, None);
+        return pending(0, n, Some((round.wrapping_sub(p) >> 32) as u32));
     };
     *slot = (round.wrapping_sub(p) >> 32) as u32;
     Emitted {
