@@ -31,7 +31,8 @@
 //!   back its spikes given beyond the event ([`NetSink::retract`]). The spikes that stay are
 //!   exactly those of emission at the clock (tested).
 //! - A sparse sink ([`NetSink::SPARSE`], the spike readout) gets the first three spikes of a
-//!   unit after every input as they come. Then the unit leaves the tick's schedule: its
+//!   unit after every input that reached it mid-burst, two after one that started a burst,
+//!   as they come. Then the unit leaves the tick's schedule: its
 //!   burst's last two spikes before what next acts on it (its next input, the pool freeing
 //!   its slot, the round-robin settling it, the end of the recording) are delivered then,
 //!   late, or not at all when they are older than the sink still reads
@@ -290,7 +291,7 @@ pub trait NetSink {
     /// given to [`NetSink::spike`]; the latest of a unit first).
     fn retract(&mut self, _s: Spike) {}
     /// Whether this sink takes each burst sparsely: the first three spikes after each input
-    /// to a unit as they come; of the rest of the burst only the last two at or before what
+    /// that reached a unit mid-burst (two after one that started a burst) as they come; of the rest of the burst only the last two at or before what
     /// next acts on the unit (its next input, the pool freeing its state, the end of the
     /// recording), delivered then, after the spikes of other units that came before; and
     /// those not at all when they came more than [`NetSink::tail_memory_us`] before it. The
@@ -1084,9 +1085,11 @@ impl<'a, L: Layout> Network<'a, L> {
                 // At rest in a pooled network: as if its slot had been freed (see `pool`).
                 *u = BurstUnit::IDLE;
             }
+            // Its spikes up to the input are out: one pending lies beyond it.
+            let mid_burst = u.pending();
             kernel.burst_input(u, t_in, WideTrace(f));
             if sparse {
-                kernel.burst_plan_sparse(u);
+                kernel.burst_plan_sparse(u, mid_burst);
             }
         }
         if pair.scheduled() {

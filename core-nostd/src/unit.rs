@@ -632,16 +632,22 @@ const AT_REST: i32 = i32::MIN;
 /// the sink needs of them is delivered when something next acts on the unit.
 const SKIPPING: u64 = 1 << 62;
 /// Bits 61..59 of a pending `next`: 0 for a unit delivered spike by spike, else
-/// [`HEAD_DONE`] or the spikes still to deliver before skipping (up to [`HEAD_SPIKES`]).
+/// [`HEAD_DONE`] or the spikes still to deliver before skipping (up to [`HEAD_IN_BURST`]).
 const HEAD_SHIFT: u32 = 59;
 /// The head count's bits.
 const HEAD: u64 = 7 << HEAD_SHIFT;
 /// A sparse unit whose head is out.
 const HEAD_DONE: u64 = 7;
-/// Spikes delivered after each input before skipping: the readout decodes an input from the
-/// first interval after it, or from the second when the input came so late in the first that
-/// its first spike is hardly early (a third of the decodes on a Prophesee Gen3 recording).
-const HEAD_SPIKES: u64 = 3;
+/// Spikes delivered after an input that reached the unit mid-burst, before skipping: the
+/// readout decodes such an input from the first interval after it, or from the second when
+/// the input came so late in the first that its first spike is hardly early (a third of the
+/// decodes on a Prophesee Gen3 recording).
+const HEAD_IN_BURST: u64 = 3;
+/// Spikes delivered after an input that started a burst, before skipping: its first interval
+/// decodes it (from rest; or, within the readout's memory of an earlier burst, as a
+/// perturbation of a decaying current that could no longer make a spike, which makes the
+/// first spike early whenever it comes).
+const HEAD_FROM_REST: u64 = 2;
 /// Every plan bit.
 const PLAN: u64 = SKIPPING | HEAD;
 
@@ -940,12 +946,18 @@ impl Kernel {
     }
 
     /// Gives a unit that has just taken an input a sparse delivery plan (with the burst
-    /// tables only; else nothing changes): its next three spikes are delivered as they come,
-    /// then the rest of its burst is skipped (see [`Kernel::burst_emit_run`]).
+    /// tables only; else nothing changes): its next three spikes (two when the input started
+    /// the burst: `mid_burst` false) are delivered as they come, then the rest of its burst
+    /// is skipped (see [`Kernel::burst_emit_run`]).
     #[inline]
-    pub fn burst_plan_sparse(&self, u: &mut BurstUnit) {
+    pub fn burst_plan_sparse(&self, u: &mut BurstUnit, mid_burst: bool) {
         if self.orbit && u.pending() {
-            u.next = (u.next & !PLAN) | (HEAD_SPIKES << HEAD_SHIFT);
+            let head = if mid_burst {
+                HEAD_IN_BURST
+            } else {
+                HEAD_FROM_REST
+            };
+            u.next = (u.next & !PLAN) | (head << HEAD_SHIFT);
         }
     }
 
@@ -962,7 +974,7 @@ impl Kernel {
     /// [`Kernel::burst_emit_into`] for any unit, planned sparse or not ([`Emission`]).
     ///
     /// A sparse unit ([`Kernel::burst_plan_sparse`]) delivers the first three spikes after
-    /// each input as they come, then skips the rest of its burst: no tick visits it. A
+    /// each input that reached it mid-burst, two after one that started a burst, as they come, then skips the rest of its burst: no tick visits it. A
     /// catch-up (`catch_up = Some(memory_us)`: before an input at `until`, before the unit's
     /// state is freed or settled, at the end of a recording) delivers the last two spikes at
     /// or before `until` instead, after skipping those before them; or nothing, when the

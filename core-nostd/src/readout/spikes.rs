@@ -86,7 +86,9 @@
 //! recording), and the interval before it (what the early spike is early against). Between
 //! two inputs a burst follows its orbit, and a spike there says nothing the interval before
 //! it did not. So the readout is a sparse sink ([`NetSink::SPARSE`]): the network delivers the
-//! first three spikes after each input as they come, and skips the rest, telling the readout
+//! first spikes after each input as they come (three after an input that reached the unit
+//! mid-burst, for the late ones; two after one that started a burst: from rest, or after a
+//! burst, where its first spike is early whenever it comes), and skips the rest, telling the readout
 //! where it did ([`NetSink::resume`]: the next spike only marks where the membrane restarts).
 //! The last interval before the next input matters only to that input's decode, so the
 //! burst's last two spikes before it are delivered when it comes (or when the unit's state is
@@ -95,10 +97,12 @@
 //! afresh whatever came before). An input noticed later still (a burst near the refractory
 //! limit, whole-µs spike times) was decoded against the wrong interval with every spike; here
 //! it is not decoded (0.2 % of the decodes on drone seed 1). On the STM32F405 strip at dev03's
-//! rate this takes the spiking pipeline from 761 to 374 instructions per event; RMSE / peak
-//! moves by at most 0.6 points on 72 shared, regime and held-out scenes (a first head of two
-//! spikes: drone seed 1 9.3 → 9.0 %, but a held-out 1.6 rad/s turn 20.3 → 22.5 %, and a third
-//! fewer decodes on the Gen3 recording).
+//! rate this takes the spiking pipeline from 761 to 349 instructions per event; RMSE / peak
+//! moves by at most 0.6 points on 72 shared, regime and held-out scenes (two spikes after
+//! every input instead: drone seed 1 9.3 → 9.0 %, but a held-out 1.6 rad/s turn 20.3 →
+//! 22.5 %, and a third fewer decodes on the Gen3 recording; two only after an input that
+//! starts a burst: 15 of 76 scenes better, by up to 0.9 points, 5 worse, by up to 0.4, the Gen3
+//! recording 11 148 → 11 144 decodes).
 //!
 //! # State
 //! One [`SpikeCell`] per pixel of the layout and network (three networks: 84 bytes per pixel),
