@@ -540,6 +540,16 @@ pub(crate) fn div_narrow(n: u64, d: u32) -> Option<u32> {
     }
 }
 
+/// `n / d` for `d > 0` (0 for `d = 0`), exact: by [`div_narrow`] when `d` and the quotient fit
+/// in 32 bits, else by a 64-bit division (a library routine on a 32-bit MCU).
+#[inline]
+pub(crate) fn div_u64(n: u64, d: u64) -> u64 {
+    match u32::try_from(d).ok().and_then(|d32| div_narrow(n, d32)) {
+        Some(q) => u64::from(q),
+        None => n.checked_div(d).unwrap_or(0),
+    }
+}
+
 /// [`div_narrow`] from 32-bit divisions (`n >> 32 < d` required; then `d > 0`).
 #[inline]
 fn div_narrow_32(n: u64, d: u32) -> u32 {

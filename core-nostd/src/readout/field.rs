@@ -98,6 +98,7 @@
 
 use crate::exp_table::ExpDecay;
 use crate::log2::exp2_q16;
+use crate::unit::div_u64;
 
 /// Column bands either side of the principal point.
 pub const COL_BANDS: usize = 4;
@@ -186,7 +187,7 @@ const MAX_WEIGHT: u64 = 1 << 20;
 /// The weight of a column band's value (or of a pair's mean) with variance `var` (Q32) in the
 /// field's weighted median: `WEIGHT_SCALE / var`, at least 1.
 fn band_weight(var: u64) -> u64 {
-    (WEIGHT_SCALE / var.max(1)).max(1)
+    div_u64(WEIGHT_SCALE, var.max(1)).max(1)
 }
 
 /// Prior information on the slopes of a column's fit (weight x Y² in Q12): a slope of 2 rad/s
@@ -599,7 +600,7 @@ impl Field {
                 .copied()
                 .unwrap_or(UNIT_WEIGHT),
         );
-        let samples_q16 = (total << 16) / weight.max(1);
+        let samples_q16 = div_u64(total << 16, weight.max(1));
         if total == 0 || samples_q16 < u64::from(self.settings.min_samples_q16) {
             return None;
         }
@@ -648,7 +649,7 @@ impl Field {
             .max(u64::from(self.settings.spread_floor_q16));
         Some(RegionStats {
             median,
-            variance: iqr.saturating_mul(iqr) / samples,
+            variance: div_u64(iqr.saturating_mul(iqr), samples),
         })
     }
 
@@ -689,8 +690,10 @@ impl Field {
             // speed within SHORT_TAU_US; above 4/5 it may be the 20 ms rate's scatter).
             (FieldEstimate::Rotation(v), Population::Slow) if 5 * short_rate < 4 * rate => {
                 // |v| < 2^31 and 5 short_rate < 4 rate, so the scaled value fits.
-                let scaled =
-                    (u64::from(v.unsigned_abs()) * 5 * short_rate / (4 * rate).max(1)) as i32;
+                let scaled = div_u64(
+                    u64::from(v.unsigned_abs()) * 5 * short_rate,
+                    (4 * rate).max(1),
+                ) as i32;
                 FieldEstimate::Rotation(if v < 0 { -scaled } else { scaled })
             }
             (est, _) => est,
@@ -722,13 +725,13 @@ impl Field {
         let i = pop as usize;
         let mass: u64 = self.mass.get(i).map_or(0, |m| m.iter().flatten().sum());
         let w = u64::from(self.weight.get(i).copied().unwrap_or(UNIT_WEIGHT).max(1));
-        (mass << 16) / w
+        div_u64(mass << 16, w)
     }
 
     /// Decoded bursts per µs of a population, averaged over its histograms' time constant
     /// (Q16): the slow units may answer only where edges are mostly slow.
     fn rate(&self, pop: Population) -> u64 {
-        self.samples_q16(pop) / self.tau_us(pop)
+        div_u64(self.samples_q16(pop), self.tau_us(pop))
     }
 
     /// A population's histogram time constant (µs, at least 1).
@@ -757,7 +760,7 @@ impl Field {
             .iter()
             .map(|&[neg, pos]| sign_agreement(neg, pos, w))
             .sum();
-        (agree << 16) / w
+        div_u64(agree << 16, w)
     }
 
     /// One population's estimate.
@@ -889,7 +892,7 @@ impl Field {
             else {
                 continue;
             };
-            let w = (WEIGHT_SCALE / st.variance.max(1)).min(MAX_WEIGHT) as i64;
+            let w = div_u64(WEIGHT_SCALE, st.variance.max(1)).min(MAX_WEIGHT) as i64;
             if w == 0 {
                 continue;
             }
@@ -947,7 +950,7 @@ fn fit_intercept(sums: &[HalfSums; 2], used: [bool; 2]) -> Option<(i64, u64)> {
     }
     // omega = rhs / info (rhs in weight x Q12, info in weight x Q12), in Q12 then Q16.
     let omega_q12 = rhs.saturating_mul(1 << 12) / info;
-    let variance = ((WEIGHT_SCALE << 12) / info.unsigned_abs()).max(1);
+    let variance = div_u64(WEIGHT_SCALE << 12, info.unsigned_abs()).max(1);
     Some((omega_q12.saturating_mul(16), variance))
 }
 
