@@ -32,13 +32,13 @@
 //!   exactly those of emission at the clock (tested).
 //! - A sparse sink ([`NetSink::SPARSE`], the spike readout) gets the first three spikes of a
 //!   unit after every input that reached it mid-burst, two after one that started a burst,
-//!   as they come. Then the unit leaves the tick's schedule: its
-//!   burst's last two spikes before what next acts on it (its next input, the pool freeing
-//!   its slot, the round-robin settling it, the end of the recording) are delivered then,
-//!   late, or not at all when they are older than the sink still reads
-//!   ([`NetSink::tail_memory_us`]); the spikes between are counted, not computed one by one
-//!   (their places on the orbit are known: the burst tables' rows). A burst of `n` spikes
-//!   then costs at most three visits and five emissions, not `n` (21 spikes per burst on the
+//!   as they come. Then the unit leaves the tick's schedule: its burst's last two spikes
+//!   before what next acts on it (its next input, the pool freeing its slot, the round-robin
+//!   settling it, the end of the recording) are delivered then, late, or not at all when they
+//!   are older than the sink still reads ([`NetSink::tail_memory_us`]); the spikes between
+//!   are counted, not computed one by one (their places on the orbit are known: the burst
+//!   tables' rows). A burst of `n` spikes then costs at most three visits by the tick and
+//!   five spikes delivered, not `n` (21 spikes per burst on the
 //!   STM32F405's strip at dev03's rate). What the spike readout decodes from them is what it
 //!   decodes from every spike, except inputs it would only have noticed after the second
 //!   interval that followed them (tested).
@@ -291,10 +291,11 @@ pub trait NetSink {
     /// given to [`NetSink::spike`]; the latest of a unit first).
     fn retract(&mut self, _s: Spike) {}
     /// Whether this sink takes each burst sparsely: the first three spikes after each input
-    /// that reached a unit mid-burst (two after one that started a burst) as they come; of the rest of the burst only the last two at or before what
-    /// next acts on the unit (its next input, the pool freeing its state, the end of the
-    /// recording), delivered then, after the spikes of other units that came before; and
-    /// those not at all when they came more than [`NetSink::tail_memory_us`] before it. The
+    /// that reached a unit mid-burst (two after one that started a burst) as they come; of
+    /// the rest of the burst only the last two at or before what next acts on the unit (its
+    /// next input, the pool freeing its state, the end of the recording), delivered then,
+    /// after the spikes of other units that came before; and those not at all when they came
+    /// more than [`NetSink::tail_memory_us`] before it. The
     /// skipped spikes are counted in [`NetStats`] (see [`Kernel::burst_emit_run`]). Between
     /// the spikes it gets, a burst follows its orbit: nothing acted on the unit. For a sink
     /// that reads the first intervals after each input and the one before it, not every

@@ -984,8 +984,8 @@ impl Kernel {
     /// [`Kernel::burst_emit_into`] for any unit, planned sparse or not ([`Emission`]).
     ///
     /// A sparse unit ([`Kernel::burst_plan_sparse`]) delivers the first three spikes after
-    /// each input that reached it mid-burst, two after one that started a burst, as they come, then skips the rest of its burst: no tick visits it. A
-    /// catch-up (`catch_up = Some(memory_us)`: before an input at `until`, before the unit's
+    /// each input that reached it mid-burst, two after one that started a burst, as they
+    /// come, then skips the rest of its burst: no tick visits it. A catch-up (`catch_up = Some(memory_us)`: before an input at `until`, before the unit's
     /// state is freed or settled, at the end of a recording) delivers the last two spikes at
     /// or before `until` instead, after skipping those before them; or nothing, when the
     /// burst's last spike came more than `memory_us` before `until` (the sink no longer reads

@@ -88,8 +88,9 @@
 //! it did not. So the readout is a sparse sink ([`NetSink::SPARSE`]): the network delivers the
 //! first spikes after each input as they come (three after an input that reached the unit
 //! mid-burst, for the late ones; two after one that started a burst: from rest, or after a
-//! burst, where its first spike is early whenever it comes), and skips the rest, telling the readout
-//! where it did ([`NetSink::resume`]: the next spike only marks where the membrane restarts).
+//! burst, where its first spike is early whenever it comes), and skips the rest, telling the
+//! readout where it did ([`NetSink::resume`]: the next spike only marks where the membrane
+//! restarts).
 //! The last interval before the next input matters only to that input's decode, so the
 //! burst's last two spikes before it are delivered when it comes (or when the unit's state is
 //! freed, or at the end), and not at all when by then they are older than
