@@ -887,3 +887,21 @@ fn sparse_delivery_skips_long_bursts() {
         assert!(mid_burst > 100, "{mid_burst} resumptions before an input");
     }
 }
+
+/// The check has teeth: a sparse sink that forgot bursts sooner than the readout may (an
+/// eighth of its memory) would make it decode what every spike does not say.
+#[test]
+fn a_tail_memory_shorter_than_the_readouts_is_caught() {
+    let train: Vec<(u32, u16, u16)> = (0..40u32)
+        .flat_map(|sweep| {
+            // One edge every 20-70 ms: bursts end, and the next input comes within the
+            // readout's memory of some and beyond an eighth of it.
+            let gap = 20_000 + (sweep * 7_919) % 50_000;
+            (0..8u16).map(move |x| (if x == 0 { gap } else { 2_000 }, x, 1))
+        })
+        .collect();
+    let memory = BurstDecoder::new(&Kernel::DEFAULT).tail_memory_us();
+    assert!(check_sparse(&train, Some(memory)).is_ok());
+    let short = format!("{:?}", check_sparse(&train, Some(memory / 8)));
+    assert!(short.contains("from a sparse train only"), "{short}");
+}
