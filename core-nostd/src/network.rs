@@ -1028,14 +1028,13 @@ impl<'a, L: Layout> Network<'a, L> {
             return;
         };
         let (stats, run) = (&mut self.stats, &mut self.run);
-        let catch_up = Some(sink.tail_memory_us());
         emit_pair(
             kernel,
             pair,
             c,
             t_in,
             fine(t_in),
-            catch_up,
+            true,
             sink,
             run,
             |dir, n| count(stats, dir, n),
@@ -1210,19 +1209,10 @@ impl<'a, L: Layout> Network<'a, L> {
         {
             return;
         }
-        let catch_up = Some(sink.tail_memory_us());
         let (stats, run) = (&mut self.stats, &mut self.run);
-        emit_pair(
-            kernel,
-            pair,
-            c,
-            t,
-            fine(t),
-            catch_up,
-            sink,
-            run,
-            |dir, n| count(stats, dir, n),
-        );
+        emit_pair(kernel, pair, c, t, fine(t), true, sink, run, |dir, n| {
+            count(stats, dir, n)
+        });
     }
 
     /// The pool's sweep for this period: slots whose units are all at rest at `t` are freed.
@@ -1288,7 +1278,7 @@ impl<'a, L: Layout> Network<'a, L> {
                         continue;
                     };
                     let (stats, run) = (&mut self.stats, &mut self.run);
-                    emit_pair(kernel, pair, c, due, until, None, sink, run, |dir, n| {
+                    emit_pair(kernel, pair, c, due, until, false, sink, run, |dir, n| {
                         count(stats, dir, n)
                     });
                     if !pair.scheduled() {
@@ -1319,8 +1309,7 @@ impl<'a, L: Layout> Network<'a, L> {
                     continue;
                 };
                 let (stats, run) = (&mut self.stats, &mut self.run);
-                let catch_up = Some(sink.tail_memory_us());
-                emit_pair(kernel, pair, c, t, until, catch_up, sink, run, |dir, n| {
+                emit_pair(kernel, pair, c, t, until, true, sink, run, |dir, n| {
                     count(stats, dir, n)
                 });
                 let cell = c as u32;
@@ -1354,8 +1343,8 @@ impl<'a, L: Layout> Network<'a, L> {
 /// Emits the spikes of both units of cell `c` whose exact time is at or before `until`, for
 /// units whose next spike is reported at or before `due`, in runs of up to [`SPIKE_RUN`] per
 /// unit ([`NetSink::spikes`], through the scratch buffer `run`); `tally(dir, n)` counts them.
-/// `catch_up` (the sink's [`NetSink::tail_memory_us`]): skipping units deliver what they
-/// skipped up to `until` too ([`Kernel::burst_emit_run`]).
+/// With `catch_up`, skipping units deliver what they skipped up to `until` too
+/// ([`Kernel::burst_emit_run`], with the sink's [`NetSink::tail_memory_us`]).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
@@ -1364,7 +1353,7 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
     c: usize,
     due: u32,
     until: FineTime,
-    catch_up: Option<u32>,
+    catch_up: bool,
     sink: &mut S,
     run: &mut [u32; SPIKE_RUN],
     mut tally: T,
@@ -1375,11 +1364,12 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
     let mut unit = |u: &mut BurstUnit, dir: Dir| {
         if S::SPARSE {
             // A skipping unit is never due; with `catch_up` it delivers what it skipped.
-            if !(u.due(due) || (catch_up.is_some() && u.skipping())) {
+            if !(u.due(due) || (catch_up && u.skipping())) {
                 return;
             }
+            let memory = catch_up.then(|| sink.tail_memory_us());
             loop {
-                let e = kernel.burst_emit_run(u, until, run, catch_up);
+                let e = kernel.burst_emit_run(u, until, run, memory);
                 if e.resumed {
                     sink.resume(cell, dir);
                 }
@@ -1390,7 +1380,7 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
                 if total > 0 {
                     tally(dir, total);
                 }
-                if (e.n == 0 && !e.resumed) || (catch_up.is_none() && !u.due(due)) {
+                if (e.n == 0 && !e.resumed) || (!catch_up && !u.due(due)) {
                     break;
                 }
             }

@@ -517,10 +517,7 @@ fn scale_by_ratio(x: u64, a: u64, b: u64) -> u64 {
     let k = 32u32.saturating_sub(b.leading_zeros());
     let (a, b) = (a >> k, (b >> k).max(1));
     // Q32, <= 1 (a quotient below 2^32 unless a == b).
-    let ratio = match div_narrow(a << 32, b as u32) {
-        Some(q) if a < b => u64::from(q),
-        _ => (a << 32) / b,
-    };
+    let ratio = div_u64(a << 32, b);
     ((u128::from(x) * u128::from(ratio)) >> 32) as u64
 }
 
@@ -623,6 +620,12 @@ pub const fn nearest_us(t: FineTime) -> u32 {
 #[inline]
 pub const fn reported_by(t_us: u32) -> FineTime {
     fine(t_us).wrapping_add((1 << 31) - 1)
+}
+
+/// Whether a spike at `t` comes after `until` (both fine times, wrapping).
+#[inline]
+fn is_late(until: FineTime, t: FineTime) -> bool {
+    (until.wrapping_sub(t) as i64) < 0
 }
 
 /// No burst (see [`BurstUnit::next`]).
@@ -1027,64 +1030,31 @@ impl Kernel {
                 return Emission::NONE;
             };
             let row = alpha >> 32;
-            let late = |t: FineTime| (until.wrapping_sub(t) as i64) < 0;
             // The pending spike lies within half a µs of `next_us`: most catch-ups come
             // before it (an input to the unit's twin, say) and need no more.
-            if late(fine(u.next_us).wrapping_sub(1 << 31)) {
+            if is_late(until, fine(u.next_us).wrapping_sub(1 << 31)) {
+                return Emission::NONE;
+            }
+            let at = |r: u64| self.orbit_time(u.ts, (r << 32) | frac);
+            let t_row = at(row);
+            if is_late(until, t_row) {
                 return Emission::NONE;
             }
             // The row to deliver from: the second-to-last spike due.
-            let target = {
-                let ts = u.ts;
-                let at = |r: u64| self.orbit_time(ts, (r << 32) | frac);
-                let t_row = at(row);
-                if late(t_row) {
-                    return Emission::NONE;
-                }
-                // Earlier spikes have higher rows: the due ones are those from the lowest due
-                // row up. Find it in (lo, hi] (`lo` not due, `hi` due) by interpolating the
-                // spike times, which fall about evenly over the rows, every other step
-                // halving instead (at most twice as many steps as halving alone).
-                let (mut lo, mut hi) = (0u64, row);
-                let (mut t_lo, mut t_hi) = (at(0), t_row);
-                if late(t_lo) {
-                    let mut halve = false;
-                    while hi.saturating_sub(lo) > 1 {
-                        let width = hi.saturating_sub(lo);
-                        let step = if halve {
-                            width / 2
-                        } else {
-                            // width · ahead / span, to 16 bits (a 32-bit division).
-                            let span = t_lo.wrapping_sub(t_hi).max(1);
-                            let cut = (64 - span.leading_zeros()).saturating_sub(16);
-                            let span = (span >> cut).max(1) as u32;
-                            let ahead = (t_lo.wrapping_sub(until) >> cut).min(u64::from(span));
-                            let width32 = u32::try_from(width).unwrap_or(u32::MAX);
-                            let step = width32.saturating_mul(ahead as u32).checked_div(span);
-                            u64::from(step.unwrap_or(0))
-                        };
-                        // Strictly inside (lo, hi).
-                        let mid = lo.saturating_add(step.max(1).min(width.saturating_sub(1)));
-                        halve = !halve;
-                        let t_mid = at(mid);
-                        if late(t_mid) {
-                            (lo, t_lo) = (mid, t_mid);
-                        } else {
-                            (hi, t_hi) = (mid, t_mid);
-                        }
-                    }
-                    hi.saturating_add(1)
-                } else if until.wrapping_sub(t_lo) > fine(memory_us) {
-                    // The burst is over, its last spike beyond the sink's memory: nothing to
-                    // deliver.
-                    u.next = DONE | frac;
-                    return Emission {
-                        skipped: u32::try_from(row.saturating_add(1)).unwrap_or(u32::MAX),
-                        ..Emission::NONE
-                    };
-                } else {
-                    1
-                }
+            let t_last = at(0);
+            let target = if is_late(until, t_last) {
+                self.lowest_due_row(u.ts, frac, (0, t_last), (row, t_row), until)
+                    .saturating_add(1)
+            } else if until.wrapping_sub(t_last) > fine(memory_us) {
+                // The burst is over, its last spike beyond the sink's memory: nothing to
+                // deliver.
+                u.next = DONE | frac;
+                return Emission {
+                    skipped: u32::try_from(row.saturating_add(1)).unwrap_or(u32::MAX),
+                    ..Emission::NONE
+                };
+            } else {
+                1
             };
             let target = target.min(row);
             skip = Emission {
@@ -1119,6 +1089,47 @@ impl Kernel {
             }
         }
         Emission { n: e.n, ..skip }
+    }
+
+    /// The lowest row of a burst (anchor `ts`, column `frac`) whose spike lies at or before
+    /// `until`, within `(lo, hi]`, given each end's row and spike time (`lo`'s after `until`,
+    /// `hi`'s not). Earlier spikes have higher rows. Found by interpolating the spike times,
+    /// which fall about evenly over the rows, every other step halving instead (at most twice
+    /// as many steps as halving alone).
+    fn lowest_due_row(
+        &self,
+        ts: FineTime,
+        frac: u64,
+        (mut lo, mut t_lo): (u64, FineTime),
+        (mut hi, mut t_hi): (u64, FineTime),
+        until: FineTime,
+    ) -> u64 {
+        let mut halve = false;
+        while hi.saturating_sub(lo) > 1 {
+            let width = hi.saturating_sub(lo);
+            let step = if halve {
+                width / 2
+            } else {
+                // width · ahead / span, to 16 bits (a 32-bit division).
+                let span = t_lo.wrapping_sub(t_hi).max(1);
+                let cut = (64 - span.leading_zeros()).saturating_sub(16);
+                let span = (span >> cut).max(1) as u32;
+                let ahead = (t_lo.wrapping_sub(until) >> cut).min(u64::from(span));
+                let width32 = u32::try_from(width).unwrap_or(u32::MAX);
+                let step = width32.saturating_mul(ahead as u32).checked_div(span);
+                u64::from(step.unwrap_or(0))
+            };
+            // Strictly inside (lo, hi).
+            let mid = lo.saturating_add(step.max(1).min(width.saturating_sub(1)));
+            halve = !halve;
+            let t_mid = self.orbit_time(ts, (mid << 32) | frac);
+            if is_late(until, t_mid) {
+                (lo, t_lo) = (mid, t_mid);
+            } else {
+                (hi, t_hi) = (mid, t_mid);
+            }
+        }
+        hi
     }
 
     /// [`Kernel::burst_emit_into`] without burst tables: each next spike by Newton's method.

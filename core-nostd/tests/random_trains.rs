@@ -739,7 +739,7 @@ impl NetSink for Sparse {
         self.spikes.push((id, s.t_us, resumed));
     }
     fn resume(&mut self, cell: u32, dir: Dir) {
-        let id = cell * 2 + dir.slot() as u32;
+        let id = Spike { t_us: 0, cell, dir }.unit_id();
         assert!(!self.resumed.contains(&id), "two resumes without a spike");
         self.resumed.push(id);
     }

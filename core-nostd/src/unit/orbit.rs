@@ -32,7 +32,7 @@
 
 include!(concat!(env!("OUT_DIR"), "/orbit.rs"));
 
-use super::div_narrow;
+use super::div_u64;
 
 /// A tier of [`ROWS`]: rows from `first` on, `2^log2` columns each (`2^log2 + 1` entries: the
 /// last repeats the next row's first), starting at entry `offset`.
@@ -138,11 +138,7 @@ pub(super) fn r_last(r_prev: u64, precise: bool) -> u64 {
     let x = r2_last(r_prev) << 24; // r^2 in Q10.54: sqrt is Q5.27
     let r = sqrt_approx(x);
     if precise && r > 0 {
-        let q = match u32::try_from(r).ok().and_then(|r32| div_narrow(x, r32)) {
-            Some(q) => u64::from(q),
-            None => x / r,
-        };
-        (r + q) / 2
+        (r + div_u64(x, r)) / 2
     } else {
         r
     }
@@ -295,10 +291,7 @@ fn alpha_at(y: u64, guess: u64) -> u64 {
             let span = b.saturating_sub(a).max(1);
             let num = y.saturating_sub(a);
             // Below one cell's span the quotient is below 2^wbits <= 2^32.
-            let q = match div_narrow(num << wbits, span as u32) {
-                Some(q) if num < span => u64::from(q),
-                _ => (num << wbits) / span,
-            };
+            let q = div_u64(num << wbits, span);
             return start + q.min((1 << wbits) - 1);
         }
     }
