@@ -137,6 +137,11 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     }
 
     /// Processes one event (stream order), first emitting every sample due before it.
+    ///
+    /// Inline: the common cases (no sample due; an event outside a window's layout, which is
+    /// only counted) cost a few instructions where the caller loops over events; the work of
+    /// an event in the layout and of a sample is out of line.
+    #[inline(always)]
     pub fn event<F: FnMut(YawSample)>(&mut self, ev: Event, out: &mut F) {
         let t = EventTime::from_us(ev.t_us);
         match self.next_out {
@@ -148,9 +153,14 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         self.last_event = t;
         // One layout: the side networks' cell is the main one's, and an event outside it is
         // counted by the main network alone.
-        let Some(c) = self.net.locate(ev) else {
-            return;
-        };
+        if let Some(c) = self.net.locate(ev) {
+            self.event_at(ev, c);
+        }
+    }
+
+    /// An event at cell `c` of the layout, through every network.
+    #[inline(never)]
+    fn event_at(&mut self, ev: Event, c: usize) {
         self.net.event_in(ev, c, &mut self.readout);
         self.each_side(|net, sink| net.event_in(ev, c, sink));
     }
