@@ -133,7 +133,7 @@ use crate::log2::{exp2_q16, log2_q16};
 use crate::network::{NetSink, Spike};
 use crate::params::Trace;
 use crate::time::EventTime;
-use crate::unit::Kernel;
+use crate::unit::{div_u64, Kernel};
 
 /// `log2` (Q16.16) of the largest share of its ceiling (`w_T` times the pixel's own trace) a
 /// near unit's drive is read at: 0.9, a crossing of one pixel in `tau_F ln(10/9)` (2.1 ms for
@@ -548,7 +548,8 @@ impl BurstDecoder {
         }
         // M - a = N / K (Q16 µs); the event may have come during the refractory period before
         // the interval (a < 0), then it counts from the interval's start.
-        let ma_q16 = (n << 16) / k;
+        // Both positive; a 32-bit quotient (M - a below 65.5 ms) takes the narrow division.
+        let ma_q16 = div_u64((n as u64) << 16, k as u64) as i64;
         let a_q16 = ((i64::from(m) << 16) - ma_q16).max(0);
         let l2d = log2_q16(k as u64, 16).saturating_sub(self.l2_time_q16(a_q16));
         let a_us = ((a_q16 + (1 << 15)) >> 16).clamp(0, i64::from(m)) as u32;
