@@ -102,8 +102,15 @@ pub(super) fn r_at(alpha: u64) -> u64 {
         let last = (((ROWS_END - 1) as u64) << 32) | (alpha & 0xFFFF_FFFF);
         return r_at(last) + (row - (ROWS_END - 1)) as u64 * DELTA_Q27;
     }
-    let (start, wbits, a, b) = cell(alpha);
-    a + ((b.saturating_sub(a) * (alpha - start)) >> wbits)
+    // As in `emit`: the weight `(alpha - start) / 2^wbits` in Q0.32, so that the product
+    // is 32 x 32 bits and the shift the high word (the same value as `cell`'s interpolation).
+    let t = tier_of(row);
+    let frac = alpha & 0xFFFF_FFFF;
+    let col = (frac >> (32 - t.log2)) as usize;
+    let w32 = (frac << t.log2) as u32;
+    let i = t.offset + (row - t.first) * ((1 << t.log2) + 1) + col;
+    let (a, b) = (at(&ROWS, i), at(&ROWS, i + 1));
+    a + ((b.saturating_sub(a) * u64::from(w32)) >> 32)
 }
 
 /// `r^2` (Q2.30) of the last spike of a burst, from its predecessor `r_prev` (Q5.27).
