@@ -813,14 +813,15 @@ impl<'a, L: Layout> Network<'a, L> {
         c
     }
 
-    /// Processes one event at cell `c` ([`Network::locate`]).
-    pub fn event_in<S: NetSink>(&mut self, ev: Event, c: usize, sink: &mut S) {
+    /// Processes one event at cell `c` ([`Network::locate`]). Returns whether it went past the
+    /// input filter (`false`: held back, or `c` outside the cells).
+    pub fn event_in<S: NetSink>(&mut self, ev: Event, c: usize, sink: &mut S) -> bool {
         self.stats.events += 1;
         let Some(own) = self.own_traces::<S>(c, ev.t_us) else {
-            return;
+            return false;
         };
         let Some(slow_onset) = self.input_filter(c, ev.on, &own) else {
-            return;
+            return false;
         };
         if own.late {
             self.stats.out_of_order += 1;
@@ -859,6 +860,7 @@ impl<'a, L: Layout> Network<'a, L> {
         if self.spiking::<S>() {
             self.unit_update(c, mask, &own, ev.t_us, far.fac, sink);
         }
+        true
     }
 
     /// The pixel's own FAC traces just before the event (decayed once, used twice), and whether

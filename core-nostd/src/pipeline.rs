@@ -158,11 +158,27 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         }
     }
 
-    /// An event at cell `c` of the layout, through every network.
+    /// An event at cell `c` of the layout, through every network. The near units' network
+    /// hears only the events the main network's input filter let through: it has the main
+    /// network's kernel, and its cells follow the same events (an event held back changes
+    /// neither), so its own filter would hold back the same ones (its cell clocks can differ
+    /// only after an out-of-order event, by whether the cell's units were live). The slow
+    /// units' filter is their own (another `tau_F`).
     #[inline(never)]
     fn event_at(&mut self, ev: Event, c: usize) {
-        self.net.event_in(ev, c, &mut self.readout);
-        self.each_side(|net, sink| net.event_in(ev, c, sink));
+        let passed = self.net.event_in(ev, c, &mut self.readout);
+        if !(R::SLOW_UNITS || R::NEAR_UNITS) {
+            return;
+        }
+        let Self { sides, readout, .. } = self;
+        if let Some(net) = sides.slow.as_mut() {
+            let side = Side::Slow;
+            net.event_in(ev, c, &mut SideSink { readout, side });
+        }
+        if let Some(net) = sides.near.as_mut().filter(|_| passed) {
+            let side = Side::Near;
+            net.event_in(ev, c, &mut SideSink { readout, side });
+        }
     }
 
     /// Moves the clock to `now_us` without an event, emitting every sample due up to it.
