@@ -459,6 +459,9 @@ pub struct Network<'a, L: Layout> {
     slow_onset_level: Trace,
     /// Next cell of the round-robin clock refresh.
     refresh: usize,
+    /// The latest time up to which any unit's spikes have been emitted (`None`: none yet): an
+    /// input at or after it has no spike to take back.
+    emitted_until: Option<FineTime>,
     stats: NetStats,
     /// Scratch space for a unit's run of spikes on its way to the sink.
     run: [u32; SPIKE_RUN],
@@ -668,6 +671,7 @@ impl<'a, L: Layout> Network<'a, L> {
             onset_level,
             slow_onset_level,
             refresh: 0,
+            emitted_until: None,
             stats: NetStats::default(),
             run: [0; SPIKE_RUN],
         })
@@ -1026,6 +1030,7 @@ impl<'a, L: Layout> Network<'a, L> {
         } else {
             t
         };
+        self.emitting_until(fine(t_in));
         let Some(pair) = self.slot(c).and_then(|s| self.units.get_mut(s)) else {
             return;
         };
@@ -1067,6 +1072,10 @@ impl<'a, L: Layout> Network<'a, L> {
         };
         let pooled = self.pool.is_some();
         let sparse = S::SPARSE && sink.ahead_us() == 0;
+        // Spikes were emitted after the input only if some emission reached past it.
+        let retract = self
+            .emitted_until
+            .is_some_and(|e| (fine(t_in).wrapping_sub(e) as i64) < 0);
         let Some(pair) = self.units.get_mut(s) else {
             return;
         };
@@ -1079,10 +1088,12 @@ impl<'a, L: Layout> Network<'a, L> {
             if S::SPARSE {
                 kernel.burst_plan_end(u);
             }
-            kernel.burst_retract(u, fine(t_in), |t_us| {
-                uncount(stats, dir);
-                sink.retract(Spike { t_us, cell, dir })
-            });
+            if retract {
+                kernel.burst_retract(u, fine(t_in), |t_us| {
+                    uncount(stats, dir);
+                    sink.retract(Spike { t_us, cell, dir })
+                });
+            }
             if pooled && kernel.burst_at_rest(u, t_in) {
                 // At rest in a pooled network: as if its slot had been freed (see `pool`).
                 *u = BurstUnit::IDLE;
@@ -1142,6 +1153,18 @@ impl<'a, L: Layout> Network<'a, L> {
         }
         if let Some(w) = self.active.get_mut(s / 32) {
             *w &= !(1 << (s % 32));
+        }
+    }
+
+    /// Notes that spikes are being emitted up to `until`.
+    #[inline]
+    fn emitting_until(&mut self, until: FineTime) {
+        let later = match self.emitted_until {
+            Some(e) => (until.wrapping_sub(e) as i64) > 0,
+            None => true,
+        };
+        if later {
+            self.emitted_until = Some(until);
         }
     }
 
@@ -1215,6 +1238,7 @@ impl<'a, L: Layout> Network<'a, L> {
         emit_pair(kernel, pair, c, t, fine(t), true, sink, run, |dir, n| {
             count(stats, dir, n)
         });
+        self.emitting_until(fine(t));
     }
 
     /// The pool's sweep for this period: slots whose units are all at rest at `t` are freed.
@@ -1251,6 +1275,7 @@ impl<'a, L: Layout> Network<'a, L> {
             // worth: a unit in a dense burst once per horizon, not once per tick.
             let due = t;
             let until = reported_by(horizon);
+            self.emitting_until(until);
             let kernel = self.kernel;
             for (w, word) in self.active.iter_mut().enumerate() {
                 if *word == 0 {
@@ -1302,6 +1327,7 @@ impl<'a, L: Layout> Network<'a, L> {
     pub fn flush<S: NetSink>(&mut self, t: u32, sink: &mut S) {
         if self.spiking::<S>() {
             let until = reported_by(t);
+            self.emitting_until(until);
             let kernel = self.kernel;
             for s in 0..self.units.len() {
                 let Some(c) = self.cell_of(s) else {
