@@ -1036,10 +1036,19 @@ impl Kernel {
                 return Emission::NONE;
             }
             let at = |r: u64| self.orbit_time(u.ts, (r << 32) | frac);
-            let t_row = at(row);
-            if is_late(until, t_row) {
-                return Emission::NONE;
-            }
+            let near_us = fine(u.next_us).wrapping_add(1 << 31);
+            let t_row = if is_late(until, near_us) {
+                // Within half a µs of it: the exact time decides.
+                let t = at(row);
+                if is_late(until, t) {
+                    return Emission::NONE;
+                }
+                t
+            } else {
+                // Due for sure. Its time within half a µs, which is all the row search below
+                // takes from it (to interpolate; its comparisons are exact).
+                fine(u.next_us)
+            };
             // The row to deliver from: the second-to-last spike due.
             let t_last = at(0);
             let target = if is_late(until, t_last) {
