@@ -946,8 +946,12 @@ impl<'a> Decoding<'a> {
         near: Option<&[SpikeCell]>,
     ) -> bool {
         let decoder = self.decoder;
-        let Some(c) = self.cells.get(cell).copied() else {
-            return true;
+        // Many calls find the unit waiting for nothing (each new onset asks for both units,
+        // and each output for both units of every queued cell): the cell is copied only when
+        // it waits.
+        let c = match self.cells.get(cell) {
+            Some(c) if c.waits(u) => *c,
+            _ => return true,
         };
         let (Some(&l2d), Some(&twin_l2d), Some(twin), Some(t_trg)) = (
             c.l2d.get(u),
@@ -957,9 +961,6 @@ impl<'a> Decoding<'a> {
         ) else {
             return true;
         };
-        if !c.waits(u) {
-            return true;
-        }
         let answer = if twin_l2d != i16::MIN {
             Some(l2_unpack(twin_l2d))
         } else {
