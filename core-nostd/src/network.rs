@@ -1408,7 +1408,10 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
                 if total > 0 {
                     tally(dir, total);
                 }
-                if (e.n == 0 && !e.resumed) || (!catch_up && !u.due(due)) {
+                if (e.n == 0 && !e.resumed)
+                    || (!catch_up && !u.due(due))
+                    || (catch_up && u.none_due_by(until))
+                {
                     break;
                 }
             }

@@ -762,6 +762,14 @@ impl BurstUnit {
         self.scheduled().then_some(self.next_us)
     }
 
+    /// Whether no spike of the unit lies at or before `until`: none pending, or the pending
+    /// one reported more than half a µs after `until` (its exact time is within half a µs of
+    /// its reported one, for any plan).
+    #[inline]
+    pub fn none_due_by(&self, until: FineTime) -> bool {
+        !self.pending() || is_late(until, fine(self.next_us).wrapping_sub(1 << 31))
+    }
+
     /// Whether a spike is scheduled that is reported at or before `t_us` (no branch).
     #[inline(always)]
     pub fn due(&self, t_us: u32) -> bool {
