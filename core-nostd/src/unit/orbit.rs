@@ -80,14 +80,6 @@ fn tier_of(row: usize) -> &'static Tier {
         .unwrap_or(&NONE)
 }
 
-/// The column of a row with `2^log2` columns (`log2 <= 32`) that holds the fraction `frac`
-/// (Q0.32 of `alpha`), and the interpolation weight within it in Q0.32: 32-bit shifts.
-#[inline(always)]
-fn column(frac: u32, log2: u32) -> (usize, u32) {
-    let col = frac.checked_shr(32 - log2).unwrap_or(0) as usize;
-    (col, frac.checked_shl(log2).unwrap_or(0))
-}
-
 /// The table cell holding `alpha` (row >= 1, inside the table): its start (Q32.32), its width
 /// (log2, in units of 2^-32), and `r` (Q5.27) at both ends.
 #[inline]
@@ -113,7 +105,9 @@ pub(super) fn r_at(alpha: u64) -> u64 {
     // As in `emit`: the weight `(alpha - start) / 2^wbits` in Q0.32, so that the product
     // is 32 x 32 bits and the shift the high word (the same value as `cell`'s interpolation).
     let t = tier_of(row);
-    let (col, w32) = column(alpha as u32, t.log2);
+    let frac = alpha & 0xFFFF_FFFF;
+    let col = (frac >> (32 - t.log2)) as usize;
+    let w32 = (frac << t.log2) as u32;
     let i = t.offset + (row - t.first) * ((1 << t.log2) + 1) + col;
     let (a, b) = (at(&ROWS, i), at(&ROWS, i + 1));
     a + ((b.saturating_sub(a) * u64::from(w32)) >> 32)
@@ -242,8 +236,9 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
     {
         // The interpolation weight in Q0.32: (b - a)·w >> wbits is the high word of
         // (b - a)·(w << log2).
-        let (col, w32) = column(frac as u32, t.log2);
+        let w32 = (frac << t.log2) as u32;
         let stride = (1usize << t.log2) + 1;
+        let col = (frac >> (32 - t.log2)) as usize;
         let mut i = t.offset + (row - t.first) * stride + col;
         while row >= t.first {
             let Some(&[a, b]) = ROWS.get(i..i + 2) else {
