@@ -1040,7 +1040,7 @@ impl Kernel {
             let row = alpha >> 32;
             // The pending spike lies within half a µs of `next_us`: most catch-ups come
             // before it (an input to the unit's twin, say) and need no more.
-            if is_late(until, fine(u.next_us).wrapping_sub(1 << 31)) {
+            if u.none_due_by(until) {
                 return Emission::NONE;
             }
             let at = |r: u64| self.orbit_time(u.ts, (r << 32) | frac);
