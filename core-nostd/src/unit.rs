@@ -1287,7 +1287,12 @@ impl Kernel {
             return;
         }
         // L = ln D(t_e) = ln D(t) + (t - t_e)/tau.
-        let l = ln_d + ((i128::from(charged) * i128::from(self.inv_tau_q48)) >> 48) as i64;
+        let l = if charged == 0 {
+            // Charging starts at the input (a unit at rest): L = ln D(t).
+            ln_d
+        } else {
+            ln_d + ((i128::from(charged) * i128::from(self.inv_tau_q48)) >> 48) as i64
+        };
         let Ok(l) = u64::try_from(l) else {
             return;
         };
