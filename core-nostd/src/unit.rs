@@ -1268,14 +1268,16 @@ impl Kernel {
         let d1 = d0.saturating_add(dd).min(E22_Q32);
         // The membrane is continuous: v = D·(t - t_e)/tau before and after, so the charging
         // start moves to t - (D/D')·(t - t_e). In a refractory period it stays.
-        let te_old = self.charging_start(u);
-        let since = tt.wrapping_sub(te_old) as i64;
         let te = if d0 == 0 {
             tt
-        } else if since > 0 {
-            tt.wrapping_sub(scale_by_ratio(since as u64, d0, d1))
         } else {
-            te_old
+            let te_old = self.charging_start(u);
+            let since = tt.wrapping_sub(te_old) as i64;
+            if since > 0 {
+                tt.wrapping_sub(scale_by_ratio(since as u64, d0, d1))
+            } else {
+                te_old
+            }
         };
         let ln_d = orbit::ln_q32(d1).unwrap_or(i64::MIN / 2);
         u.ts = tt.wrapping_add_signed(ln_d.saturating_mul(i64::from(self.params.tau_trg_us)));
