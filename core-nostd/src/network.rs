@@ -53,7 +53,7 @@ use crate::exp_table::{scale_q31, ExpDecay};
 use crate::layout::{Dir, Layout, UnitMask};
 use crate::params::{Trace, TAU_SLOW_US};
 use crate::time::EventTime;
-use crate::unit::{elapsed_us, fine, reported_by, BurstUnit, FineTime, Kernel, WideTrace};
+use crate::unit::{elapsed_us, fine, is_late, reported_by, BurstUnit, FineTime, Kernel, WideTrace};
 
 pub mod pool;
 
@@ -1073,9 +1073,7 @@ impl<'a, L: Layout> Network<'a, L> {
         let pooled = self.pool.is_some();
         let sparse = S::SPARSE && sink.ahead_us() == 0;
         // Spikes were emitted after the input only if some emission reached past it.
-        let retract = self
-            .emitted_until
-            .is_some_and(|e| (fine(t_in).wrapping_sub(e) as i64) < 0);
+        let retract = self.emitted_until.is_some_and(|e| is_late(fine(t_in), e));
         let Some(pair) = self.units.get_mut(s) else {
             return;
         };
@@ -1159,11 +1157,7 @@ impl<'a, L: Layout> Network<'a, L> {
     /// Notes that spikes are being emitted up to `until`.
     #[inline]
     fn emitting_until(&mut self, until: FineTime) {
-        let later = match self.emitted_until {
-            Some(e) => (until.wrapping_sub(e) as i64) > 0,
-            None => true,
-        };
-        if later {
+        if self.emitted_until.is_none_or(|e| is_late(e, until)) {
             self.emitted_until = Some(until);
         }
     }
@@ -1351,9 +1345,7 @@ impl<'a, L: Layout> Network<'a, L> {
                     });
                 }
                 if pair.scheduled() {
-                    if let Some(w) = self.active.get_mut(s / 32) {
-                        *w |= 1 << (s % 32);
-                    }
+                    self.mark_active(s);
                 }
             }
         }

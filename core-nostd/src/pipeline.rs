@@ -163,7 +163,9 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     /// network's kernel, and its cells follow the same events (an event held back changes
     /// neither), so its own filter would hold back the same ones (its cell clocks can differ
     /// only after an out-of-order event, by whether the cell's units were live). The slow
-    /// units' filter is their own (another `tau_F`).
+    /// units' filter is their own (another `tau_F`). The side networks are called by name, not
+    /// through [`Pipeline::each_side`] with a test of the side: that cost the F405 window with
+    /// the spike readout 3 instructions per event (QEMU, dev03).
     #[inline(never)]
     fn event_at(&mut self, ev: Event, c: usize) {
         let passed = self.net.event_in(ev, c, &mut self.readout);

@@ -624,7 +624,7 @@ pub const fn reported_by(t_us: u32) -> FineTime {
 
 /// Whether a spike at `t` comes after `until` (both fine times, wrapping).
 #[inline]
-fn is_late(until: FineTime, t: FineTime) -> bool {
+pub(crate) fn is_late(until: FineTime, t: FineTime) -> bool {
     (until.wrapping_sub(t) as i64) < 0
 }
 
@@ -823,7 +823,7 @@ impl Kernel {
             return true;
         }
         let rest_from = u.ts.wrapping_add(self.rest_after_fine);
-        (!u.pending() || u.skipping()) && (fine(t_us).wrapping_sub(rest_from) as i64) >= 0
+        (!u.pending() || u.skipping()) && !is_late(fine(t_us), rest_from)
     }
 
     /// Brings a unit whose drive has become negligible (`D < 2^-32`) at `t_us` to rest, so
