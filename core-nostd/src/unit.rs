@@ -959,10 +959,7 @@ impl Kernel {
             u.next = DONE | (u.next & 0xFFFF_FFFF);
         } else {
             u.next = e.next;
-            u.next_us = match e.next_us {
-                Some(t) => t,
-                None => nearest_us(self.spike_time(u, e.next)),
-            };
+            u.next_us = e.next_us;
         }
     }
 

@@ -180,8 +180,8 @@ pub(super) struct Emitted {
     /// Spikes written.
     pub n: usize,
     /// The nearest whole µs of the pending spike (beyond `until`, or the first that did not
-    /// fit in `out`); `None` when the burst is over.
-    pub next_us: Option<u32>,
+    /// fit in `out`); meaningless when the burst is over.
+    pub next_us: u32,
 }
 
 /// `tau` (µs) in the units of `tau · r` with `r` in Q5.27 and times in Q32.32.
@@ -198,12 +198,14 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
     // reported at the whole µs nearest to t.
     let due_from = until.wrapping_sub(ts);
     let round = ts.wrapping_add(1 << 31);
+    let due = |p: u64| (due_from.wrapping_add(p) as i64) >= 0;
+    let reported = |p: u64| (round.wrapping_sub(p) >> 32) as u32;
     let frac = alpha & 0xFFFF_FFFF;
     let start = (alpha >> 32) as usize;
     let mut row = start;
     let mut n = 0usize;
     // Where the burst stands after `n` spikes, at `row`.
-    let pending = |row: usize, n: usize, next_us: Option<u32>| Emitted {
+    let pending = |row: usize, n: usize, next_us: u32| Emitted {
         next: ((row as u64) << 32) | frac,
         n,
         next_us,
@@ -215,13 +217,10 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
         let mut r = r_at(alpha);
         while row >= ROWS_END {
             let p = r.wrapping_mul(TAU32);
-            if (due_from.wrapping_add(p) as i64) < 0 {
-                return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
-            }
-            let Some(slot) = out.get_mut(n) else {
-                return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
+            let Some(slot) = out.get_mut(n).filter(|_| due(p)) else {
+                return pending(row, n, reported(p));
             };
-            *slot = (round.wrapping_sub(p) >> 32) as u32;
+            *slot = reported(p);
             n += 1;
             r_prev = Some(r);
             r -= DELTA_Q27;
@@ -246,13 +245,10 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
             };
             let r = a + ((u64::from(b.saturating_sub(a)) * u64::from(w32)) >> 32) as u32;
             let p = u64::from(r) * TAU32;
-            if (due_from.wrapping_add(p) as i64) < 0 {
-                return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
-            }
-            let Some(slot) = out.get_mut(n) else {
-                return pending(row, n, Some((round.wrapping_sub(p) >> 32) as u32));
+            let Some(slot) = out.get_mut(n).filter(|_| due(p)) else {
+                return pending(row, n, reported(p));
             };
-            *slot = (round.wrapping_sub(p) >> 32) as u32;
+            *slot = reported(p);
             n += 1;
             r_prev = Some(u64::from(r));
             i = i.wrapping_sub(stride);
@@ -262,17 +258,14 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
     // Row 0: the last spike, from its predecessor.
     let r_prev = r_prev.unwrap_or_else(|| r_at(alpha + ONE));
     let p = r_last(r_prev, false).wrapping_mul(TAU32);
-    if (due_from.wrapping_add(p) as i64) < 0 {
-        return pending(0, n, Some((round.wrapping_sub(p) >> 32) as u32));
-    }
-    let Some(slot) = out.get_mut(n) else {
-        return pending(0, n, Some((round.wrapping_sub(p) >> 32) as u32));
+    let Some(slot) = out.get_mut(n).filter(|_| due(p)) else {
+        return pending(0, n, reported(p));
     };
-    *slot = (round.wrapping_sub(p) >> 32) as u32;
+    *slot = reported(p);
     Emitted {
         next: u64::MAX,
         n: n + 1,
-        next_us: None,
+        next_us: 0,
     }
 }
 
