@@ -59,6 +59,20 @@ fn at(table: &[u32], i: usize) -> u64 {
     u64::from(table.get(i).copied().unwrap_or(0))
 }
 
+impl Tier {
+    /// Entries per row of this tier (the last repeats the next row's first).
+    #[inline(always)]
+    fn stride(&self) -> usize {
+        (1 << self.log2) + 1
+    }
+
+    /// The index in [`ROWS`] of column `col` of `row` (a row of this tier).
+    #[inline(always)]
+    fn entry(&self, row: usize, col: usize) -> usize {
+        self.offset + (row - self.first) * self.stride() + col
+    }
+}
+
 /// How many tiers start at or before `row` (0 for row 0). Counted from the first tier: a
 /// burst's rows are mostly in the first (one comparison past it).
 #[inline(always)]
@@ -88,7 +102,7 @@ fn cell(alpha: u64) -> (u64, u32, u64, u64) {
     let t = tier_of(row);
     let wbits = 32 - t.log2;
     let col = ((alpha & 0xFFFF_FFFF) >> wbits) as usize;
-    let i = t.offset + (row - t.first) * ((1 << t.log2) + 1) + col;
+    let i = t.entry(row, col);
     let start = alpha & !((1u64 << wbits) - 1);
     (start, wbits, at(&ROWS, i), at(&ROWS, i + 1))
 }
@@ -108,7 +122,7 @@ pub(super) fn r_at(alpha: u64) -> u64 {
     let frac = alpha & 0xFFFF_FFFF;
     let col = (frac >> (32 - t.log2)) as usize;
     let w32 = (frac << t.log2) as u32;
-    let i = t.offset + (row - t.first) * ((1 << t.log2) + 1) + col;
+    let i = t.entry(row, col);
     let (a, b) = (at(&ROWS, i), at(&ROWS, i + 1));
     a + ((b.saturating_sub(a) * u64::from(w32)) >> 32)
 }
@@ -236,9 +250,9 @@ pub(super) fn emit(ts: u64, until: u64, alpha: u64, out: &mut [u32]) -> Emitted 
         // The interpolation weight in Q0.32: (b - a)·w >> wbits is the high word of
         // (b - a)·(w << log2).
         let w32 = (frac << t.log2) as u32;
-        let stride = (1usize << t.log2) + 1;
+        let stride = t.stride();
         let col = (frac >> (32 - t.log2)) as usize;
-        let mut i = t.offset + (row - t.first) * stride + col;
+        let mut i = t.entry(row, col);
         while row >= t.first {
             let Some(&[a, b]) = ROWS.get(i..i + 2) else {
                 break;
