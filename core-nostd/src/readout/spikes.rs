@@ -814,16 +814,27 @@ impl<'a> Decoding<'a> {
         self.queued += 1;
     }
 
-    /// Takes the first cell off the waiting queue.
-    fn dequeue(&mut self) -> Option<usize> {
-        let (head, tail) = self.queue?;
-        let next = self
-            .cells
-            .get_mut(head as usize)
-            .map_or(QUEUE_END, |c| core::mem::replace(&mut c.next, NOT_QUEUED));
-        self.queue = (next != QUEUE_END && head != tail).then_some((next, tail));
+    /// Takes `cell` off the waiting queue, `prev` being the cell before it (`None`: it is
+    /// the first) and `next` the one after it (`QUEUE_END`: it is the last).
+    fn unlink(&mut self, prev: Option<u32>, cell: u32, next: u32) {
+        let Some((head, tail)) = self.queue else {
+            return;
+        };
+        if let Some(c) = self.cells.get_mut(cell as usize) {
+            c.next = NOT_QUEUED;
+        }
+        let tail = if tail == cell { prev } else { Some(tail) };
+        let head = match prev {
+            None => (next != QUEUE_END).then_some(next),
+            Some(p) => {
+                if let Some(c) = self.cells.get_mut(p as usize) {
+                    c.next = next;
+                }
+                Some(head)
+            }
+        };
+        self.queue = head.zip(tail);
         self.queued = self.queued.saturating_sub(1);
-        Some(head as usize)
     }
 
     /// Unit `dir` at `cell` resumes after skipped spikes of its burst ([`NetSink::resume`]).
@@ -905,7 +916,9 @@ impl<'a> Decoding<'a> {
         if !same {
             // A new onset: what waits for the last one is decided now.
             for u in 0..2 {
-                self.resolve(target, cell, u, None, near);
+                if c.waits(u) {
+                    self.resolve(target, cell, u, None, near);
+                }
             }
             let own = self.own_after(last.map(|t0| (t0, c.own())), d.t_us);
             if let Some(c) = self.cells.get_mut(cell) {
@@ -1076,19 +1089,26 @@ impl<'a> Decoding<'a> {
     /// Decides what waits for a twin that has answered or can no longer answer by `t_us`
     /// (`near`: as for [`Decoding::resolve`]).
     fn settle<L: Layout>(&mut self, target: &mut Target<L>, t_us: u32, near: Option<&[SpikeCell]>) {
-        for _ in 0..self.queued {
-            let Some(cell) = self.dequeue() else {
+        // The queue is walked in place: the decided cells leave it, the others keep their
+        // order (deciding never adds to it).
+        let mut prev = None;
+        let mut cur = self.queue.map(|(head, _)| head);
+        while let Some(cell) = cur {
+            let Some(next) = self.cells.get(cell as usize).map(|c| c.next) else {
                 break;
             };
             let mut done = true;
             for u in 0..2 {
-                if !self.resolve(target, cell, u, Some(t_us), near) {
+                if !self.resolve(target, cell as usize, u, Some(t_us), near) {
                     done = false;
                 }
             }
-            if !done {
-                self.enqueue(cell);
+            if done {
+                self.unlink(prev, cell, next);
+            } else {
+                prev = Some(cell);
             }
+            cur = (next != QUEUE_END && next != NOT_QUEUED).then_some(next);
         }
     }
 
