@@ -1035,17 +1035,9 @@ impl<'a, L: Layout> Network<'a, L> {
             return;
         };
         let (stats, run) = (&mut self.stats, &mut self.run);
-        emit_pair(
-            kernel,
-            pair,
-            c,
-            t_in,
-            fine(t_in),
-            true,
-            sink,
-            run,
-            |dir, n| count(stats, dir, n),
-        );
+        emit_pair::<S, _, true>(kernel, pair, c, t_in, fine(t_in), sink, run, |dir, n| {
+            count(stats, dir, n)
+        });
     }
 
     /// The TRG input of the units in `mask`: each takes back its spikes emitted beyond the
@@ -1229,7 +1221,7 @@ impl<'a, L: Layout> Network<'a, L> {
             return;
         }
         let (stats, run) = (&mut self.stats, &mut self.run);
-        emit_pair(kernel, pair, c, t, fine(t), true, sink, run, |dir, n| {
+        emit_pair::<S, _, true>(kernel, pair, c, t, fine(t), sink, run, |dir, n| {
             count(stats, dir, n)
         });
         self.emitting_until(fine(t));
@@ -1299,7 +1291,7 @@ impl<'a, L: Layout> Network<'a, L> {
                         continue;
                     };
                     let (stats, run) = (&mut self.stats, &mut self.run);
-                    emit_pair(kernel, pair, c, due, until, false, sink, run, |dir, n| {
+                    emit_pair::<S, _, false>(kernel, pair, c, due, until, sink, run, |dir, n| {
                         count(stats, dir, n)
                     });
                     if !pair.scheduled() {
@@ -1331,7 +1323,7 @@ impl<'a, L: Layout> Network<'a, L> {
                     continue;
                 };
                 let (stats, run) = (&mut self.stats, &mut self.run);
-                emit_pair(kernel, pair, c, t, until, true, sink, run, |dir, n| {
+                emit_pair::<S, _, true>(kernel, pair, c, t, until, sink, run, |dir, n| {
                     count(stats, dir, n)
                 });
                 let cell = c as u32;
@@ -1363,17 +1355,16 @@ impl<'a, L: Layout> Network<'a, L> {
 /// Emits the spikes of both units of cell `c` whose exact time is at or before `until`, for
 /// units whose next spike is reported at or before `due`, in runs of up to [`SPIKE_RUN`] per
 /// unit ([`NetSink::spikes`], through the scratch buffer `run`); `tally(dir, n)` counts them.
-/// With `catch_up`, skipping units deliver what they skipped up to `until` too
+/// With `CATCH_UP`, skipping units deliver what they skipped up to `until` too
 /// ([`Kernel::burst_emit_run`], with the sink's [`NetSink::tail_memory_us`]).
 #[allow(clippy::too_many_arguments)]
 #[inline]
-fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
+fn emit_pair<S: NetSink, T: FnMut(Dir, u32), const CATCH_UP: bool>(
     kernel: &Kernel,
     pair: &mut UnitPair,
     c: usize,
     due: u32,
     until: FineTime,
-    catch_up: bool,
     sink: &mut S,
     run: &mut [u32; SPIKE_RUN],
     mut tally: T,
@@ -1383,11 +1374,11 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
     // Each unit by name (an array of the two would be iterated by index on every visit).
     let mut unit = |u: &mut BurstUnit, dir: Dir| {
         if S::SPARSE {
-            // A skipping unit is never due; with `catch_up` it delivers what it skipped.
-            if !(u.due(due) || (catch_up && u.skipping())) {
+            // A skipping unit is never due; with `CATCH_UP` it delivers what it skipped.
+            if !(u.due(due) || (CATCH_UP && u.skipping())) {
                 return;
             }
-            let memory = catch_up.then(|| sink.tail_memory_us());
+            let memory = CATCH_UP.then(|| sink.tail_memory_us());
             loop {
                 let e = kernel.burst_emit_run(u, until, run, memory);
                 if e.resumed {
@@ -1401,8 +1392,8 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32)>(
                     tally(dir, total);
                 }
                 if (e.n == 0 && !e.resumed)
-                    || (!catch_up && !u.due(due))
-                    || (catch_up && u.none_due_by(until))
+                    || (!CATCH_UP && !u.due(due))
+                    || (CATCH_UP && u.none_due_by(until))
                 {
                     break;
                 }
