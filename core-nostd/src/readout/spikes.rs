@@ -1090,10 +1090,13 @@ impl<'a> Decoding<'a> {
     /// (`near`: as for [`Decoding::resolve`]).
     fn settle<L: Layout>(&mut self, target: &mut Target<L>, t_us: u32, near: Option<&[SpikeCell]>) {
         // The queue is walked in place: the decided cells leave it, the others keep their
-        // order (deciding never adds to it).
+        // order (deciding never adds to it). At most its length in steps.
         let mut prev = None;
         let mut cur = self.queue.map(|(head, _)| head);
-        while let Some(cell) = cur {
+        for _ in 0..self.queued {
+            let Some(cell) = cur else {
+                break;
+            };
             let Some(next) = self.cells.get(cell as usize).map(|c| c.next) else {
                 break;
             };
