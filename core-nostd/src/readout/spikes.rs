@@ -99,7 +99,7 @@
 //! limit, whole-µs spike times) was decoded against the wrong interval with every spike; here
 //! it is not decoded (0.2 % of the decodes on drone seed 1). On the STM32F405 strip at dev03's
 //! rate this took the spiking pipeline from 761 to 347 instructions per event (at 07fb99b;
-//! 287 at d99a6bf with the savings since, `firmware/README.md`); RMSE / peak
+//! 288 at 6cb30ad with the savings since, `firmware/README.md`); RMSE / peak
 //! moves by at most 0.6 points on 72 shared, regime and held-out scenes (two spikes after
 //! every input instead: drone seed 1 9.3 → 9.0 %, but a held-out 1.6 rad/s turn 20.3 →
 //! 22.5 %, and a third fewer decodes on the Gen3 recording; two only after an input that
