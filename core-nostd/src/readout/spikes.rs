@@ -960,9 +960,8 @@ impl<'a> Decoding<'a> {
         near: Option<&[SpikeCell]>,
     ) -> bool {
         let decoder = self.decoder;
-        // Many calls find the unit waiting for nothing (each new onset asks for both units,
-        // and each output for both units of every queued cell): the cell is copied only when
-        // it waits.
+        // Calls from `settle` find one of a queued cell's units often waiting for nothing (a
+        // new onset asks only the units that wait): the cell is copied only when it waits.
         let c = match self.cells.get(cell) {
             Some(c) if c.waits(u) => *c,
             _ => return true,
