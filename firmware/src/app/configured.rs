@@ -16,7 +16,7 @@ use core_nostd::unit::Kernel;
 use super::arena::{bytes_for, Arena};
 pub use super::processing::Exit;
 use super::processing::{self, Clock};
-use super::{CostMeter, YawSink};
+use super::{CostMeter, FrameReceiver, YawSink};
 
 /// Why settings cannot run.
 #[derive(Clone, Copy, Debug, defmt::Format)]
@@ -130,6 +130,7 @@ impl Memory {
 /// # Errors
 /// When the settings cannot run (see [`Refused`]).
 pub async fn run<K: YawSink, M: CostMeter>(
+    queue: &mut FrameReceiver,
     kernel: &Kernel,
     settings: &Settings,
     memory: &mut Memory,
@@ -147,7 +148,7 @@ pub async fn run<K: YawSink, M: CostMeter>(
         needs.pool_owners
     );
     let accept = |new: &Settings| capacity.needs(new).is_ok();
-    Ok(processing::run::<_, M>(&mut pipeline, sink, clock, seq, settings, &accept).await)
+    Ok(processing::run::<_, M>(queue, &mut pipeline, sink, clock, seq, settings, &accept).await)
 }
 
 /// A live board's processing: runs `defaults` (the build's constants), then each configuration
@@ -155,6 +156,7 @@ pub async fn run<K: YawSink, M: CostMeter>(
 /// again (from a fresh state); the defaults must run.
 #[cfg_attr(feature = "board-qemu", allow(dead_code))]
 pub async fn serve<K: YawSink, M: CostMeter>(
+    queue: &mut FrameReceiver,
     kernel: &Kernel,
     defaults: Settings,
     memory: &mut Memory,
@@ -163,7 +165,7 @@ pub async fn serve<K: YawSink, M: CostMeter>(
     let (mut good, mut next) = (defaults, defaults);
     let mut seq = 0u8;
     loop {
-        match run::<K, M>(kernel, &next, memory, sink, Clock::Live, &mut seq).await {
+        match run::<K, M>(queue, kernel, &next, memory, sink, Clock::Live, &mut seq).await {
             Ok(Exit::End) => return,
             Ok(Exit::Reconfigure(c)) => {
                 defmt::info!("new configuration: {} x {} px", c.width, c.height);

@@ -1,48 +1,14 @@
 //! The input stage: bytes and link events from the board's source -> the link receiver
 //! (bit-slip, NSS, overrun and mode-fault recovery; frame checks) -> the frame queue.
 
-use core_nostd::aer::frame::{flags, Frame, MAX_PAYLOAD};
+use core_nostd::aer::frame::flags;
 use core_nostd::aer::link::{LinkEvent, LinkReceiver};
 use core_nostd::flags as yaw_flags;
 
-use super::{
-    raise_flags, update_stats, ByteSource, CostMeter, FrameBuf, Msg, Overload, SourceError, FRAMES,
-};
+use super::{raise_flags, update_stats, ByteSource, CostMeter, FrameSender, Overload, SourceError};
 
 /// Bytes read from the source per call.
 const CHUNK: usize = 256;
-
-fn copy_frame(f: &Frame<'_>) -> FrameBuf {
-    let mut buf = FrameBuf {
-        kind: f.kind,
-        flags: f.flags,
-        seq: f.seq,
-        len: 0,
-        payload: [0; MAX_PAYLOAD],
-    };
-    let n = f.payload.len().min(MAX_PAYLOAD);
-    if let (Some(dst), Some(src)) = (buf.payload.get_mut(..n), f.payload.get(..n)) {
-        dst.copy_from_slice(src);
-        buf.len = n as u16;
-    }
-    buf
-}
-
-/// Hands one frame to the processing stage according to `mode`.
-async fn deliver(f: FrameBuf, mode: Overload) {
-    if f.flags & flags::SOURCE_OVERFLOW != 0 {
-        raise_flags(yaw_flags::OVERFLOW);
-    }
-    match mode {
-        Overload::Backpressure => FRAMES.send(Msg::Frame(f)).await,
-        Overload::DropFrames => {
-            if FRAMES.try_send(Msg::Frame(f)).is_err() {
-                raise_flags(yaw_flags::OVERFLOW);
-                update_stats(|s| s.frames_overflow += 1);
-            }
-        }
-    }
-}
 
 /// Publishes the receiver's counters and raises INPUT_ERRORS when frames were lost.
 fn publish(link: &LinkReceiver, errors_seen: &mut u64) {
@@ -68,21 +34,53 @@ fn publish(link: &LinkReceiver, errors_seen: &mut u64) {
     });
 }
 
-/// Hands every frame the receiver has complete to the processing stage.
-async fn drain<M: CostMeter>(link: &mut LinkReceiver, mode: Overload, cost: &mut u64) {
+/// Hands every frame the receiver has complete to the processing stage, each copied once into
+/// a free slot of the queue: on a live link ([`Overload::DropFrames`]) a frame that finds none
+/// is dropped whole and counted; a replay ([`Overload::Backpressure`]) waits for one (the wait
+/// is not part of `cost`).
+async fn drain<M: CostMeter>(
+    link: &mut LinkReceiver,
+    queue: &mut FrameSender,
+    mode: Overload,
+    cost: &mut u64,
+) {
     let mut a = M::now();
-    while let Some(buf) = link.next_frame().map(|f| copy_frame(&f)) {
-        *cost += u64::from(M::ticks(a, M::now()));
-        deliver(buf, mode).await;
-        a = M::now();
+    while let Some(f) = link.next_frame() {
+        if f.flags & flags::SOURCE_OVERFLOW != 0 {
+            raise_flags(yaw_flags::OVERFLOW);
+        }
+        let slot = match mode {
+            Overload::Backpressure => {
+                *cost += u64::from(M::ticks(a, M::now()));
+                let slot = queue.send().await;
+                a = M::now();
+                Some(slot)
+            }
+            Overload::DropFrames => queue.try_send(),
+        };
+        match slot {
+            Some(slot) => {
+                slot.fill(&f);
+                queue.send_done();
+            }
+            None => {
+                raise_flags(yaw_flags::OVERFLOW);
+                update_stats(|s| s.frames_overflow += 1);
+            }
+        }
     }
     *cost += u64::from(M::ticks(a, M::now()));
 }
 
 /// Runs the input stage until the source ends (never, on a live link); then queues
-/// [`Msg::End`]. The cost of decoding (framing, CRCs, copies; not the source's reads nor the
-/// waits for queue room) is added to `Stats::input_cost_units`.
-pub async fn run<S: ByteSource, M: CostMeter>(source: &mut S, mode: Overload) {
+/// a slot that says so ([`super::FrameBuf::set_end`]). The cost of decoding (framing, CRCs, the copy
+/// into the queue; not the source's reads nor the waits for queue room) is added to
+/// `Stats::input_cost_units`.
+pub async fn run<S: ByteSource, M: CostMeter>(
+    source: &mut S,
+    queue: &mut FrameSender,
+    mode: Overload,
+) {
     let mut link = LinkReceiver::new();
     let mut chunk = [0u8; CHUNK];
     let mut errors_seen = 0u64;
@@ -100,7 +98,7 @@ pub async fn run<S: ByteSource, M: CostMeter>(source: &mut S, mode: Overload) {
                     raise_flags(yaw_flags::INPUT_ERRORS);
                 }
                 let mut cost = 0u64;
-                drain::<M>(&mut link, mode, &mut cost).await;
+                drain::<M>(&mut link, queue, mode, &mut cost).await;
                 update_stats(|s| s.input_cost_units += cost * u64::from(M::units_per_tick()));
                 publish(&link, &mut errors_seen);
                 continue;
@@ -113,14 +111,15 @@ pub async fn run<S: ByteSource, M: CostMeter>(source: &mut S, mode: Overload) {
             let taken = link.feed(rest);
             rest = rest.get(taken..).unwrap_or_default();
             cost += u64::from(M::ticks(a, M::now()));
-            drain::<M>(&mut link, mode, &mut cost).await;
+            drain::<M>(&mut link, queue, mode, &mut cost).await;
         }
         update_stats(|s| s.input_cost_units += cost * u64::from(M::units_per_tick()));
         publish(&link, &mut errors_seen);
     }
     link.end_of_stream();
     let mut cost = 0u64;
-    drain::<M>(&mut link, mode, &mut cost).await;
+    drain::<M>(&mut link, queue, mode, &mut cost).await;
     publish(&link, &mut errors_seen);
-    FRAMES.send(Msg::End).await;
+    queue.send().await.set_end();
+    queue.send_done();
 }

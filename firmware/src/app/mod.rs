@@ -2,17 +2,19 @@
 //! frames out at 1 kHz.
 //!
 //! ```text
-//!  board ByteSource ──> input() ──FrameQueue──> processing() ──YawSink──> board output
+//!  board ByteSource ──> input() ──frame queue──> processing() ──YawSink──> board output
 //!  (SPI DMA ring,       frame decoder,           payload decoder,          (USART, semihosting)
 //!   SPI flash, file)    whole frames only        Pipeline, 1 kHz samples
 //! ```
 //!
 //! The input stage and the processing stage are separate tasks joined by a queue of whole,
-//! checked frames ([`FrameQueue`]). The input stage never waits for processing on a live link
-//! ([`Overload::DropFrames`]): when the queue is full the newest frame is dropped whole and
-//! counted, so a slow consumer can cost frames but never corrupt the byte stream. A replay from
-//! storage ([`Overload::Backpressure`], QEMU) waits instead, so that every frame is processed
-//! and the output is deterministic.
+//! checked frames ([`frame_queue`]): the input stage copies each frame once, from the link
+//! receiver's buffer into a free slot of the queue, and processing decodes it there. The
+//! input stage never waits for processing on a live link ([`Overload::DropFrames`]): when no
+//! slot is free the newest frame is dropped whole and counted, so a slow consumer can cost
+//! frames but never corrupt the byte stream. A replay from storage
+//! ([`Overload::Backpressure`], QEMU) waits instead, so that every frame is processed and the
+//! output is deterministic.
 //!
 //! Boards are thin: they provide a [`ByteSource`], a [`YawSink`], a cost counter
 //! ([`CostMeter`]) and the executor; tasks are spawned by the board because embassy tasks
@@ -26,11 +28,12 @@ pub mod processing;
 use core::cell::Cell;
 use core::sync::atomic::{AtomicU8, Ordering};
 
-use core_nostd::aer::frame::{Kind, MAX_PAYLOAD};
+use core_nostd::aer::frame::{Frame, Kind, MAX_PAYLOAD};
 use core_nostd::aer::link::LinkEvent;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::CriticalSectionMutex;
-use embassy_sync::channel::Channel;
+use embassy_sync::zerocopy_channel::{Channel, Receiver, Sender};
+use static_cell::{ConstStaticCell, StaticCell};
 
 /// Frames the queue between input and processing holds (each slot ~1 KiB).
 pub const FRAME_QUEUE_LEN: usize = 8;
@@ -45,22 +48,59 @@ pub enum Overload {
     Backpressure,
 }
 
-/// One checked frame, copied out of the decoder's buffer.
-#[derive(Clone)]
+/// One slot of the frame queue, written and read in place: a checked frame, copied out of the
+/// link receiver's buffer, or the end of the stream. All zero when empty (the slots are in
+/// `.bss`).
 pub struct FrameBuf {
-    /// Payload kind.
-    pub kind: Kind,
+    /// The payload's [`Kind`] as its header nibble; 0: the byte source ended (replays only:
+    /// process what is queued, then stop).
+    kind: u8,
     /// Header flags.
     pub flags: u8,
     /// Sequence counter.
     pub seq: u16,
     /// Payload length in bytes (`<= MAX_PAYLOAD`).
-    pub len: u16,
+    len: u16,
     /// Payload bytes (`len` valid).
-    pub payload: [u8; MAX_PAYLOAD],
+    payload: [u8; MAX_PAYLOAD],
 }
 
 impl FrameBuf {
+    /// An empty slot.
+    const EMPTY: Self = Self {
+        kind: 0,
+        flags: 0,
+        seq: 0,
+        len: 0,
+        payload: [0; MAX_PAYLOAD],
+    };
+
+    /// Becomes a copy of `f` (its payload's `len` bytes only; a payload is at most
+    /// [`MAX_PAYLOAD`] bytes, a longer one would be cut there).
+    pub fn fill(&mut self, f: &Frame<'_>) {
+        self.kind = f.kind as u8;
+        self.flags = f.flags;
+        self.seq = f.seq;
+        let n = f.payload.len().min(MAX_PAYLOAD);
+        let (Some(dst), Some(src)) = (self.payload.get_mut(..n), f.payload.get(..n)) else {
+            self.len = 0;
+            return;
+        };
+        dst.copy_from_slice(src);
+        self.len = n as u16;
+    }
+
+    /// Becomes the end of the stream.
+    pub fn set_end(&mut self) {
+        self.kind = 0;
+        self.len = 0;
+    }
+
+    /// The frame's kind; `None` at the end of the stream.
+    pub fn kind(&self) -> Option<Kind> {
+        Kind::from_nibble(self.kind)
+    }
+
     /// The valid payload bytes.
     pub fn payload(&self) -> &[u8] {
         self.payload
@@ -69,21 +109,23 @@ impl FrameBuf {
     }
 }
 
-/// What flows from input to processing.
-// No heap to box the frame into: the queue's slots are frame-sized by design.
-#[allow(clippy::large_enum_variant)]
-pub enum Msg {
-    /// A checked frame.
-    Frame(FrameBuf),
-    /// The byte source ended (replays only): process what is queued, then stop.
-    End,
+/// The input stage's end of the frame queue: it takes a free slot, fills it, sends it.
+pub type FrameSender = Sender<'static, CriticalSectionRawMutex, FrameBuf>;
+
+/// The processing stage's end of the frame queue: it reads a slot in place, then frees it.
+pub type FrameReceiver = Receiver<'static, CriticalSectionRawMutex, FrameBuf>;
+
+/// The queue of whole frames between the input and the processing stage: its two ends, the
+/// first time it is called (the board hands them to its tasks); `None` after that. The
+/// [`FRAME_QUEUE_LEN`] slots are static (`.bss`); a frame is copied once, into its slot.
+pub fn frame_queue() -> Option<(FrameSender, FrameReceiver)> {
+    static SLOTS: ConstStaticCell<[FrameBuf; FRAME_QUEUE_LEN]> =
+        ConstStaticCell::new([FrameBuf::EMPTY; FRAME_QUEUE_LEN]);
+    static QUEUE: StaticCell<Channel<'static, CriticalSectionRawMutex, FrameBuf>> =
+        StaticCell::new();
+    let slots = SLOTS.try_take()?;
+    Some(QUEUE.try_init(Channel::new(slots))?.split())
 }
-
-/// The queue of whole frames between the input and the processing stage.
-pub type FrameQueue = Channel<CriticalSectionRawMutex, Msg, FRAME_QUEUE_LEN>;
-
-/// The queue instance every board uses.
-pub static FRAMES: FrameQueue = Channel::new();
 
 /// Transport flags (bits 4..=7 of the yaw frame's flags) raised since the last yaw frame.
 static PENDING_FLAGS: AtomicU8 = AtomicU8::new(0);

@@ -24,7 +24,7 @@ use embassy_futures::select::{select, Either};
 use embassy_time::{Duration, Instant, Timer};
 use fixed::types::I16F16;
 
-use super::{take_flags, update_stats, CostMeter, Msg, YawSink, FRAMES};
+use super::{take_flags, update_stats, CostMeter, FrameReceiver, YawSink};
 
 /// How [`run`] ended (and so how `configured::run` ends).
 pub enum Exit {
@@ -73,11 +73,13 @@ impl<K: YawSink> Out<'_, K> {
     }
 }
 
-/// Runs the processing stage until [`Msg::End`] (replays) or a configuration frame that
+/// Runs the processing stage on the frames of `queue` until the end of the stream (replays) or
+/// a configuration frame that
 /// differs from `current` and that `accept`s (then the samples due up to the last event are
 /// emitted first); forever on a live link otherwise. `seq` is the yaw frames' sequence
 /// counter, carried over from and to the previous and next run.
 pub async fn run<K: YawSink, M: CostMeter>(
+    queue: &mut FrameReceiver,
     pipeline: &mut Built<'_>,
     sink: &mut K,
     clock: Clock,
@@ -94,12 +96,13 @@ pub async fn run<K: YawSink, M: CostMeter>(
     let mut idle_tick: u32 = 0;
     let meter_overhead_x1024 = M::overhead_x1024();
     loop {
-        let msg = match clock {
-            Clock::EventTimeOnly => FRAMES.receive().await,
+        // The frame is read in its slot, which is freed (`receive_done`) once it is used.
+        let slot = match clock {
+            Clock::EventTimeOnly => queue.receive().await,
             Clock::Live => {
                 let deadline = Instant::now() + Duration::from_micros(u64::from(LIVE_MARGIN_US));
-                match select(FRAMES.receive(), Timer::at(deadline)).await {
-                    Either::First(m) => m,
+                match select(queue.receive(), Timer::at(deadline)).await {
+                    Either::First(slot) => slot,
                     Either::Second(()) => {
                         clock_tick(pipeline, &mut out, last, start, &mut idle_tick);
                         continue;
@@ -107,21 +110,22 @@ pub async fn run<K: YawSink, M: CostMeter>(
                 }
             }
         };
-        let frame = match msg {
-            Msg::Frame(f) => f,
-            Msg::End => {
-                // As `host-sim run`: the samples due up to the last event's time.
-                if let Some((t, _)) = last {
-                    pipeline.finish(t, &mut |s| out.emit(s, 0));
-                }
-                record_network(pipeline);
-                *seq = out.seq;
-                return Exit::End;
+        let Some(kind) = slot.kind() else {
+            queue.receive_done();
+            // As `host-sim run`: the samples due up to the last event's time.
+            if let Some((t, _)) = last {
+                pipeline.finish(t, &mut |s| out.emit(s, 0));
             }
+            record_network(pipeline);
+            *seq = out.seq;
+            return Exit::End;
         };
-        if frame.kind == Kind::Config {
+        let frame = &*slot;
+        if kind == Kind::Config {
+            let parsed = Settings::parse(frame.payload());
+            queue.receive_done();
             update_stats(|st| st.frames_processed += 1);
-            match Settings::parse(frame.payload()) {
+            match parsed {
                 Ok(new) if new == *current => {}
                 Ok(new) if accept(&new) => {
                     if let Some((t, _)) = last {
@@ -140,7 +144,7 @@ pub async fn run<K: YawSink, M: CostMeter>(
             continue;
         }
         let f = core_nostd::aer::frame::Frame {
-            kind: frame.kind,
+            kind,
             flags: frame.flags,
             seq: frame.seq,
             payload: frame.payload(),
@@ -151,6 +155,7 @@ pub async fn run<K: YawSink, M: CostMeter>(
             out: &mut out,
             meter: PhantomData,
         });
+        queue.receive_done();
         if let Some(t) = last_t {
             last = Some((t, Instant::now()));
         }

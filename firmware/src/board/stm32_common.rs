@@ -15,7 +15,7 @@ use embassy_time::Timer;
 use static_cell::StaticCell;
 
 use super::stm32_link::SpiLink;
-use crate::app::{self, CostMeter, Overload, YawSink};
+use crate::app::{self, CostMeter, FrameReceiver, FrameSender, Overload, YawSink};
 
 /// Sensor the STM32 boards assume: DAVIS346, 346 x 260 px.
 const SENSOR: (u16, u16) = (346, 260);
@@ -76,8 +76,8 @@ impl CostMeter for CycleMeter {
 }
 
 #[embassy_executor::task]
-pub async fn input_task(mut source: SpiLink) {
-    app::input::run::<_, CycleMeter>(&mut source, Overload::DropFrames).await;
+pub async fn input_task(mut source: SpiLink, mut queue: FrameSender) {
+    app::input::run::<_, CycleMeter>(&mut source, &mut queue, Overload::DropFrames).await;
 }
 
 /// Logs the counters once a second.
@@ -93,21 +93,25 @@ pub async fn status_task() {
 
 /// Runs the board: the input task on the interrupt executor (UART4 at priority P6, so it
 /// preempts processing), and the board's processing and output tasks and the status task on
-/// the thread executor. `process` and `output` make the board's task tokens.
+/// the thread executor. `process` and `output` make the board's task tokens; `process` gets
+/// the frame queue's receiving end.
 pub fn run<P, O>(
     link: SpiLink,
-    process: impl FnOnce() -> Result<SpawnToken<P>, SpawnError>,
+    process: impl FnOnce(FrameReceiver) -> Result<SpawnToken<P>, SpawnError>,
     output: impl FnOnce() -> Result<SpawnToken<O>, SpawnError>,
 ) -> ! {
     interrupt::UART4.set_priority(Priority::P6);
     let high = EXECUTOR_HIGH.start(interrupt::UART4);
-    match input_task(link) {
+    let Some((tx, rx)) = app::frame_queue() else {
+        defmt::panic!("frame queue taken")
+    };
+    match input_task(link, tx) {
         Ok(t) => high.spawn(t),
         Err(_) => defmt::panic!("spawn input"),
     }
     let executor = EXECUTOR_LOW.init(Executor::new());
     executor.run(|spawner| {
-        match process() {
+        match process(rx) {
             Ok(t) => spawner.spawn(t),
             Err(_) => defmt::panic!("spawn process"),
         }

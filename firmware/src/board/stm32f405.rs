@@ -36,6 +36,7 @@ use super::stm32_common::{self, CycleMeter, UartSink};
 use super::stm32_link::{self, SpiLink};
 use crate::app::arena::{Arena, Region};
 use crate::app::configured::{self, Memory};
+use crate::app::FrameReceiver;
 use core_nostd::network::Cell;
 
 bind_interrupts!(struct Irqs {
@@ -73,7 +74,7 @@ async fn output_task(mut tx: UartTx<'static, embassy_stm32::mode::Async>) {
 }
 
 #[embassy_executor::task]
-async fn process_task() {
+async fn process_task(mut queue: FrameReceiver) {
     // SAFETY: CELLS and UNITS are used by these arenas only, for the rest of
     // the program.
     let mut memory = unsafe {
@@ -82,7 +83,8 @@ async fn process_task() {
             units: Some(Arena::over(core::ptr::addr_of_mut!(UNITS))),
         }
     };
-    configured::serve::<_, CycleMeter>(&KERNEL, DEFAULTS, &mut memory, &mut UartSink).await;
+    configured::serve::<_, CycleMeter>(&mut queue, &KERNEL, DEFAULTS, &mut memory, &mut UartSink)
+        .await;
 }
 
 fn rcc_config() -> embassy_stm32::Config {

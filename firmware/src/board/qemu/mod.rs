@@ -37,7 +37,7 @@ use static_cell::StaticCell;
 use crate::app::arena::{Arena, Region};
 use crate::app::configured::{self, Exit, Memory};
 use crate::app::processing::Clock;
-use crate::app::{self, ByteSource, CostMeter, Overload, SourceError};
+use crate::app::{self, ByteSource, CostMeter, FrameReceiver, FrameSender, Overload, SourceError};
 use time::SysTickMeter;
 
 /// The pipeline's state: all 16 MiB of the PSRAM (cells, then the units).
@@ -151,8 +151,12 @@ fn quit(code: i32) -> ! {
 }
 
 #[embassy_executor::task]
-async fn input_task(source: &'static mut paced::Paced<Source>, mode: Overload) {
-    app::input::run::<_, SysTickMeter>(source, mode).await;
+async fn input_task(
+    source: &'static mut paced::Paced<Source>,
+    mut queue: FrameSender,
+    mode: Overload,
+) {
+    app::input::run::<_, SysTickMeter>(source, &mut queue, mode).await;
 }
 
 fn config_error(msg: &str) -> ! {
@@ -161,7 +165,7 @@ fn config_error(msg: &str) -> ! {
 }
 
 #[embassy_executor::task]
-async fn main_task(cfg: Config) {
+async fn main_task(cfg: Config, mut queue: FrameReceiver) {
     // SAFETY: STATE is used by this arena only, for the rest of the program.
     let cells = unsafe { Arena::over(core::ptr::addr_of_mut!(STATE)) };
     let mut memory = Memory { cells, units: None };
@@ -175,6 +179,7 @@ async fn main_task(cfg: Config) {
     let mut seq = 0u8;
     loop {
         let run = configured::run::<_, SysTickMeter>(
+            &mut queue,
             &KERNEL,
             &stream,
             &mut memory,
@@ -302,12 +307,15 @@ pub fn main() -> ! {
     } else {
         Overload::Backpressure
     };
+    let Some((tx, rx)) = app::frame_queue() else {
+        quit(exit::PANIC)
+    };
     executor::run(|spawner| {
-        match input_task(source, mode) {
+        match input_task(source, tx, mode) {
             Ok(t) => spawner.spawn(t),
             Err(_) => quit(exit::PANIC),
         }
-        match main_task(cfg) {
+        match main_task(cfg, rx) {
             Ok(t) => spawner.spawn(t),
             Err(_) => quit(exit::PANIC),
         }
