@@ -13,10 +13,11 @@ const POLY32_REFLECTED: u32 = 0xEDB8_8320;
 /// CRC-16/IBM-3740 polynomial.
 const POLY16: u16 = 0x1021;
 
-// Compile-time only; `i < 256` bounds the index (`get_mut` is not usable in const fn here).
+// Compile-time only; `i < 256` and `k < 4` bound the indices (`get_mut` is not usable in
+// const fn here).
 #[allow(clippy::indexing_slicing)]
-const fn crc32_table() -> [u32; 256] {
-    let mut table = [0u32; 256];
+const fn crc32_tables() -> [[u32; 256]; 4] {
+    let mut t = [[0u32; 256]; 4];
     let mut i = 0;
     while i < 256 {
         let mut c = i as u32;
@@ -29,10 +30,21 @@ const fn crc32_table() -> [u32; 256] {
             };
             bit += 1;
         }
-        table[i] = c;
+        t[0][i] = c;
         i += 1;
     }
-    table
+    // Table k: the CRC of byte i followed by k zero bytes.
+    let mut k = 1;
+    while k < 4 {
+        let mut i = 0;
+        while i < 256 {
+            let prev = t[k - 1][i];
+            t[k][i] = (prev >> 8) ^ t[0][(prev & 0xFF) as usize];
+            i += 1;
+        }
+        k += 1;
+    }
+    t
 }
 
 // Compile-time only, as above.
@@ -57,19 +69,30 @@ const fn crc16_table() -> [u16; 256] {
     table
 }
 
-/// CRC-32 table (1 KiB, in flash).
-static CRC32_TABLE: [u32; 256] = crc32_table();
+/// CRC-32 tables for four bytes at a time ("slicing by 4"; 4 KiB, in flash): table 0 is the
+/// byte-wise table, table `k` advances a byte's CRC over `k` more zero bytes.
+static CRC32_TABLES: [[u32; 256]; 4] = crc32_tables();
 /// CRC-16 table (512 bytes, in flash).
 static CRC16_TABLE: [u16; 256] = crc16_table();
 
-/// CRC-32/ISO-HDLC of `data`.
+/// CRC-32/ISO-HDLC of `data`: four bytes per step (one 32-bit load and four table lookups),
+/// then the last 0-3 bytes one by one. About 2.5 instructions per byte on a Cortex-M4 against
+/// ~6 byte by byte (measured in QEMU: the firmware's `input_instructions_per_byte`).
 #[must_use]
 pub fn crc32(data: &[u8]) -> u32 {
+    let [t0, t1, t2, t3] = &CRC32_TABLES;
+    // Every index below is masked to 8 bits: always within the 256-entry tables.
+    let at = |t: &[u32; 256], x: u32| t.get((x & 0xFF) as usize).copied().unwrap_or(0);
     let mut c = 0xFFFF_FFFFu32;
-    for &b in data {
-        // `(c ^ b) & 0xFF` is always a valid index of the 256-entry table.
-        let idx = ((c ^ u32::from(b)) & 0xFF) as usize;
-        c = (c >> 8) ^ CRC32_TABLE.get(idx).copied().unwrap_or(0);
+    let mut words = data.chunks_exact(4);
+    for w in &mut words {
+        // Always four bytes (`chunks_exact`).
+        let &[b0, b1, b2, b3] = w else { continue };
+        let x = c ^ u32::from_le_bytes([b0, b1, b2, b3]);
+        c = at(t3, x) ^ at(t2, x >> 8) ^ at(t1, x >> 16) ^ at(t0, x >> 24);
+    }
+    for &b in words.remainder() {
+        c = (c >> 8) ^ at(t0, c ^ u32::from(b));
     }
     !c
 }
@@ -95,5 +118,32 @@ mod tests {
         assert_eq!(crc16(b"123456789"), 0x29B1);
         assert_eq!(crc32(b""), 0);
         assert_eq!(crc16(b""), 0xFFFF);
+    }
+
+    /// The bitwise definition, one bit at a time.
+    fn crc32_bitwise(data: &[u8]) -> u32 {
+        let mut c = 0xFFFF_FFFFu32;
+        for &b in data {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    (c >> 1) ^ POLY32_REFLECTED
+                } else {
+                    c >> 1
+                };
+            }
+        }
+        !c
+    }
+
+    #[test]
+    fn four_bytes_at_a_time_equals_the_bitwise_crc_at_every_length_and_offset() {
+        let data: [u8; 67] = core::array::from_fn(|i| (i as u8).wrapping_mul(151).wrapping_add(7));
+        for start in 0..4 {
+            for end in start..data.len() {
+                let d = &data[start..end];
+                assert_eq!(crc32(d), crc32_bitwise(d), "bytes {start}..{end}");
+            }
+        }
     }
 }
