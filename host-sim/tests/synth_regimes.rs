@@ -237,7 +237,7 @@ fn static_camera_objects_fire_only_where_they_pass() {
     assert!(on > n / 5 && on < 4 * n / 5, "{on} ON of {n}");
     // The walker's rows: from 0.3 m above the camera to the ground 1.5 m below, at 4 m.
     let (r0, r1) = (i.cy - 100.0 * 0.3 / 4.0, i.cy + 100.0 * 1.5 / 4.0);
-    let pose = |t: f64| synth::scene::CameraPose {
+    let pose = |t: f64| synth::CameraPose {
         rot: synth::motion::rot_y(0.0),
         heading: 0.0,
         pos: [0.0; 3],

@@ -75,8 +75,8 @@ async fn drain<M: CostMeter>(
     *cost += u64::from(M::ticks(a, M::now()));
 }
 
-/// Runs the input stage until the source ends (never, on a live link); then queues
-/// a slot that says so ([`super::FrameBuf::set_end`]). The cost of decoding (framing, CRCs, the copy
+/// Runs the input stage until the source ends (never, on a live link); then queues a slot
+/// that says so ([`super::FrameBuf::set_end`]). The cost of decoding (framing, CRCs, the copy
 /// into the queue; not the source's reads nor the waits for queue room) is added to
 /// `Stats::input_cost_units`.
 pub async fn run<S: ByteSource, M: CostMeter>(

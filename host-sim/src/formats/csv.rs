@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
 
-use super::rates::TextLines;
+use super::chunked::TextLines;
 use super::text::{self, csv_fields};
 use super::{Event64, GtSample, GyroSample};
 
@@ -203,7 +203,7 @@ impl ImuCsvRows {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::rates;
+    use crate::formats::chunked;
     use crate::formats::text::{buf_line_error, Lines};
 
     /// The columns `wanted` of every row, the file read whole: how `gt.csv` and IMU CSVs were
@@ -299,7 +299,7 @@ mod tests {
             let streamed = r
                 .as_mut()
                 .map_err(|e| anyhow!("{e:#}"))
-                .and_then(|r| rates::collect(|out| rates::fill(out, || r.next_sample())));
+                .and_then(|r| chunked::collect(|out| chunked::fill(out, || r.next_sample())));
             let whole = read_columns(&p, ["t_s", "wy"], "`t_s` and `wy`");
             match (streamed, whole) {
                 (Ok(a), Ok(b)) => {

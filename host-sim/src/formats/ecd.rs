@@ -7,7 +7,7 @@ use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
 
-use super::rates::{self, TextLines};
+use super::chunked::{self, TextLines};
 use super::rotation::{CentralDifferences, Mat3};
 use super::text::{self, buf_line_error, ws_fields, Lines};
 use super::{GtSample, GyroSample, Intrinsics};
@@ -62,7 +62,7 @@ impl ImuRows {
 /// Reads `imu.txt` (`t ax ay az gx gy gz`): the gyro columns, rad/s.
 pub(super) fn read_imu(path: &Path) -> Result<Vec<GyroSample>> {
     let mut rows = ImuRows::open(path)?;
-    rates::collect(|out| rates::fill(out, || rows.next_sample()))
+    chunked::collect(|out| chunked::fill(out, || rows.next_sample()))
 }
 
 /// `groundtruth.txt` (`t px py pz qx qy qz qw`, camera-to-world) a line at a time, the
@@ -176,7 +176,7 @@ mod tests {
 
     fn gt_streamed(path: &Path) -> Result<Vec<GtSample>> {
         let mut r = PoseRates::open(path)?;
-        rates::collect(|out| rates::fill(out, || r.next_sample()))
+        chunked::collect(|out| chunked::fill(out, || r.next_sample()))
     }
 
     /// Same samples, or errors with the same text (returned).

@@ -25,6 +25,7 @@
 //!   [`read_ground_truth`] and [`read_gyro`] collect theirs.
 
 mod aedat4;
+mod chunked;
 mod csv;
 mod ecd;
 mod meta;
@@ -288,7 +289,7 @@ pub fn read(path: impl AsRef<Path>, format: Option<Format>) -> Result<Recording>
 /// When the file cannot be read or is not one of these formats, or is malformed.
 pub fn read_ground_truth(path: impl AsRef<Path>) -> Result<Vec<GtSample>> {
     let mut r = GroundTruthReader::open(path)?;
-    rates::collect(|out| r.next_chunk(out))
+    chunked::collect(|out| r.next_chunk(out))
 }
 
 /// Reads gyro samples (rad/s) from an Event Camera Dataset / synthetic `imu.txt`
@@ -302,7 +303,7 @@ pub fn read_ground_truth(path: impl AsRef<Path>) -> Result<Vec<GtSample>> {
 /// When the file cannot be read, is not one of these formats, or is malformed.
 pub fn read_gyro(path: impl AsRef<Path>) -> Result<Vec<GyroSample>> {
     let mut r = GyroReader::open(path)?;
-    rates::collect(|out| r.next_chunk(out))
+    chunked::collect(|out| r.next_chunk(out))
 }
 
 /// Bytes read for format detection.

@@ -12,7 +12,7 @@ use anyhow::{anyhow, bail, Context, Result};
 
 use hdf5::{Hyperslab, SliceOrIndex};
 
-use super::rates;
+use super::chunked;
 use super::rotation::{CentralDifferences, Mat3};
 use super::text::seconds_to_us;
 use super::{Event64, GtSample, GyroSample};
@@ -251,7 +251,7 @@ fn pixel(v: f64) -> Option<u16> {
 
 fn gyro_of(file: &hdf5::File, path: &Path) -> Result<Vec<GyroSample>> {
     let mut r = ImuRates::of(file, path)?;
-    rates::collect(|out| r.next_chunk(out))
+    chunked::collect(|out| r.next_chunk(out))
 }
 
 const IMU: &str = "davis/left/imu";
@@ -490,7 +490,7 @@ mod tests {
 
     fn gt_streamed(path: &Path) -> Result<Vec<GtSample>> {
         let mut r = PoseRates::open(path)?;
-        rates::collect(|out| r.next_chunk(out))
+        chunked::collect(|out| r.next_chunk(out))
     }
 
     #[test]
@@ -538,7 +538,7 @@ mod tests {
                 ),
             }
             let mut r = ImuRates::open(&path).unwrap();
-            let streamed = rates::collect(|out| r.next_chunk(out)).unwrap();
+            let streamed = chunked::collect(|out| r.next_chunk(out)).unwrap();
             assert_eq!(streamed.len(), n);
             assert!(
                 streamed == gyro_whole(&path).unwrap(),

@@ -1,133 +1,15 @@
 //! Ground truth and gyro read in time order a chunk at a time, from every format
 //! [`super::read_ground_truth`] and [`super::read_gyro`] accept, in memory bounded by the chunk
-//! ([`CHUNK`] lines of text, a slice of HDF5 rows, one AEDAT 4.0 packet), never by the file's
+//! ([`super::chunked::CHUNK`] lines of text, a slice of HDF5 rows, one AEDAT 4.0 packet), never by the file's
 //! length. The samples, their order and the errors are those of the whole-file readers, which
 //! collect these.
 
-use std::fs::File;
-use std::io::{BufRead, BufReader, Read};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 
+use super::chunked::fill;
 use super::{aedat4, csv, ecd, mvsec, text, GtSample, GyroSample};
-
-/// Samples a text reader hands out per chunk.
-pub const CHUNK: usize = 1 << 13;
-
-/// Longest line of a ground-truth or IMU text file (bytes): the reader holds one line at a
-/// time, so a file without line ends is an error, not an unbounded allocation.
-pub const MAX_LINE: usize = 1 << 20;
-
-/// The lines of a text file, one at a time, numbered and located as [`text::Lines`] numbers
-/// and locates those of a file read whole (every line counted, `\n` or `\r\n` endings); blank
-/// lines and `#` comments are skipped.
-pub(super) struct TextLines {
-    r: BufReader<File>,
-    path: PathBuf,
-    /// The current line, without its line end.
-    line: Vec<u8>,
-    /// Byte offset and number (1-based) of the current line.
-    offset: u64,
-    line_no: usize,
-    /// Whether the current line is the file's last and has no line end (reported as
-    /// truncated).
-    last: bool,
-    /// Byte offset of the next line.
-    next_offset: u64,
-}
-
-impl TextLines {
-    /// Opens `path`.
-    pub(super) fn open(path: &Path) -> Result<Self> {
-        let file = File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
-        Ok(Self {
-            r: BufReader::with_capacity(1 << 16, file),
-            path: path.to_path_buf(),
-            line: Vec::new(),
-            offset: 0,
-            line_no: 0,
-            last: false,
-            next_offset: 0,
-        })
-    }
-
-    /// Reads the next line that is not blank or a comment ([`TextLines::line`]); false at the
-    /// end of the file.
-    pub(super) fn next_line(&mut self) -> Result<bool> {
-        loop {
-            self.line.clear();
-            let n = (&mut self.r)
-                .take(MAX_LINE as u64 + 1)
-                .read_until(b'\n', &mut self.line)
-                .with_context(|| format!("cannot read {}", self.path.display()))?;
-            if n == 0 {
-                return Ok(false);
-            }
-            self.offset = self.next_offset;
-            self.next_offset += n as u64;
-            self.line_no += 1;
-            let newline = self.line.last() == Some(&b'\n');
-            if !newline && n > MAX_LINE {
-                bail!(
-                    "{}: line {} at byte {} is longer than {MAX_LINE} bytes",
-                    self.path.display(),
-                    self.line_no,
-                    self.offset
-                );
-            }
-            if newline {
-                self.line.pop();
-            }
-            let cr = self.line.last() == Some(&b'\r');
-            if cr {
-                self.line.pop();
-            }
-            self.last = !newline && !cr;
-            if !text::is_blank_or_comment(&self.line) {
-                return Ok(true);
-            }
-        }
-    }
-
-    /// The current line.
-    pub(super) fn line(&self) -> &[u8] {
-        &self.line
-    }
-
-    /// The error for the current line, which should hold `expected`.
-    pub(super) fn error(&self, expected: &str) -> anyhow::Error {
-        text::line_error(
-            &self.path,
-            self.offset,
-            self.line_no,
-            &self.line,
-            expected,
-            self.last,
-        )
-    }
-
-    /// The file.
-    pub(super) fn path(&self) -> &Path {
-        &self.path
-    }
-}
-
-/// Replaces `out` with up to [`CHUNK`] items of `next`; false, with `out` empty, when `next`
-/// has none left.
-pub(super) fn fill<T>(
-    out: &mut Vec<T>,
-    mut next: impl FnMut() -> Result<Option<T>>,
-) -> Result<bool> {
-    out.clear();
-    while out.len() < CHUNK {
-        match next()? {
-            Some(s) => out.push(s),
-            None => break,
-        }
-    }
-    Ok(!out.is_empty())
-}
 
 enum Truth {
     Csv(csv::GtRows),
@@ -223,16 +105,4 @@ impl GyroReader {
             Gyro::Mvsec(r) => r.next_chunk(out),
         }
     }
-}
-
-/// Every sample of a chunked reader.
-pub(super) fn collect<T>(
-    mut next_chunk: impl FnMut(&mut Vec<T>) -> Result<bool>,
-) -> Result<Vec<T>> {
-    let mut all = Vec::new();
-    let mut chunk = Vec::new();
-    while next_chunk(&mut chunk)? {
-        all.append(&mut chunk);
-    }
-    Ok(all)
 }

@@ -1,4 +1,4 @@
-//! Pinhole camera intrinsics and the sensor presets.
+//! Pinhole camera intrinsics, the camera's pose at an instant, and the sensor presets.
 
 use serde::{Deserialize, Serialize};
 
@@ -85,4 +85,19 @@ impl Preset {
             Preset::Davis240 => "davis240",
         }
     }
+}
+
+/// The camera pose at one instant, as the renderer needs it.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraPose {
+    /// Camera-to-world rotation (row-major).
+    pub rot: [[f64; 3]; 3],
+    /// Heading, rad (used by the pure-yaw fast path).
+    pub heading: f64,
+    /// Camera position in the world, metres.
+    pub pos: [f64; 3],
+    /// True when `rot` is a pure rotation about the world y axis by `heading`.
+    pub pure_yaw: bool,
+    /// Time, s (where the moving objects are).
+    pub t_s: f64,
 }

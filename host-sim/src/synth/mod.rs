@@ -29,7 +29,7 @@ pub mod truth;
 
 use serde::{Deserialize, Serialize};
 
-pub use camera::{Intrinsics, Preset};
+pub use camera::{CameraPose, Intrinsics, Preset};
 pub use flicker::Flicker;
 pub use motion::{MotionKind, MotionSpec, YawTerm};
 pub use objects::{ObjectKind, ObjectSpec};
@@ -41,7 +41,7 @@ pub use truth::{GtRow, ImuParams, ImuRow};
 
 use motion::Trajectory;
 use objects::{MovingObject, ObjectTexture};
-use scene::{CameraPose, Ground, Panorama, Renderer, Scene};
+use scene::{Ground, Panorama, Renderer, Scene};
 use sensor::{RawEvent, Sensor};
 
 /// Generator name and version written to `meta.json`.

@@ -12,10 +12,9 @@
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
-use super::camera::Intrinsics;
+use super::camera::{CameraPose, Intrinsics};
 use super::motion::{mat_vec, transpose};
 use super::rng;
-use super::scene::CameraPose;
 use super::texture::{self, Grid};
 
 /// What an object looks like (sets its size, speed range and texture).

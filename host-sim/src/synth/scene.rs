@@ -4,7 +4,7 @@
 //!
 //! Image buffers are column-major: pixel `(x, y)` is at index `x * height + y`.
 
-use super::camera::Intrinsics;
+use super::camera::{CameraPose, Intrinsics};
 use super::objects::{MovingObject, ObjectView};
 use super::texture::Grid;
 
@@ -278,21 +278,6 @@ pub struct Scene {
     pub ground: Option<Ground>,
     /// Independently moving objects (drawn over the panorama and the ground, far ones first).
     pub objects: Vec<MovingObject>,
-}
-
-/// The camera pose at one instant, as the renderer needs it.
-#[derive(Clone, Copy, Debug)]
-pub struct CameraPose {
-    /// Camera-to-world rotation (row-major).
-    pub rot: [[f64; 3]; 3],
-    /// Heading, rad (used by the pure-yaw fast path).
-    pub heading: f64,
-    /// Camera position in the world, metres.
-    pub pos: [f64; 3],
-    /// True when `rot` is a pure rotation about the world y axis by `heading`.
-    pub pure_yaw: bool,
-    /// Time, s (where the moving objects are).
-    pub t_s: f64,
 }
 
 /// Precomputed per-column and per-pixel terms for a camera that only yaws (no ground plane):
