@@ -1,8 +1,8 @@
 //! Ground truth and gyro read in time order a chunk at a time, from every format
-//! [`super::read_ground_truth`] and [`super::read_gyro`] accept, in memory bounded by the chunk
-//! ([`super::chunked::CHUNK`] lines of text, a slice of HDF5 rows, one AEDAT 4.0 packet), never by the file's
-//! length. The samples, their order and the errors are those of the whole-file readers, which
-//! collect these.
+//! [`super::read_ground_truth`] and [`super::read_gyro`] accept, in memory bounded by the
+//! chunk ([`super::chunked::CHUNK`] lines of text, a slice of HDF5 rows, one AEDAT 4.0
+//! packet), never by the file's length. The samples, their order and the errors are those of
+//! the whole-file readers, which collect these.
 
 use std::path::Path;
 
