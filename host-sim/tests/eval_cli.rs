@@ -151,6 +151,47 @@ fn eval_prints_the_figures_and_plots() {
 }
 
 #[test]
+fn without_ground_truth_the_gyro_is_the_reference() {
+    // A recording with an IMU and no ground truth (a real camera's): the estimate against the
+    // gyro, which reads the truth with a 0.01 rad/s bias.
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("seq");
+    synth(&seq);
+    let yaw = dir.path().join("yaw.csv");
+    estimate_from_gt(&seq.join("gt.csv"), &yaw, "yaw_rate_rad_s", 1.0);
+    let json = run_ok(
+        host_sim()
+            .args(["eval", "--json", "--yaw"])
+            .arg(&yaw)
+            .arg("--imu")
+            .arg(seq.join("imu.txt")),
+    );
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let corr = v["estimate"]["correlation"].as_f64().unwrap();
+    assert!(corr > 0.99, "{corr}");
+    let bias = v["estimate"]["mean_error_rad_s"].as_f64().unwrap();
+    assert!((bias.abs() - 0.01).abs() < 0.003, "{bias}");
+    assert!(v["gyro"].is_null(), "{json}");
+    let text = run_ok(
+        host_sim()
+            .args(["eval", "--yaw"])
+            .arg(&yaw)
+            .arg("--imu")
+            .arg(seq.join("imu.txt")),
+    );
+    assert!(text.starts_with("reference: the gyro of"), "{text}");
+    // Neither: a one-line error naming both.
+    let out = host_sim()
+        .args(["eval", "--yaw"])
+        .arg(&yaw)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--gt"), "{err}");
+}
+
+#[test]
 fn eval_of_a_normalized_readout() {
     let dir = tempfile::tempdir().unwrap();
     let seq = dir.path().join("seq");

@@ -1,8 +1,9 @@
-//! `host-sim eval --yaw yaw.csv --gt gt.csv [--imu imu.txt] [--plot FILE.png] [--json]`.
+//! `host-sim eval --yaw yaw.csv --gt gt.csv [--imu imu.txt] [--plot FILE.png] [--json]`, or
+//! `host-sim eval --yaw yaw.csv --imu rec.aedat4 ...` with the gyro as the reference.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::Context;
+use anyhow::{bail, Context};
 
 use crate::eval::{
     self, EstimateReader, EvalOptions, Evaluator, GyroYawReader, Resample, SampleSource,
@@ -21,10 +22,12 @@ pub struct Args {
     #[arg(long, value_parser = super::input_path)]
     pub yaw: PathBuf,
     /// Ground truth: `gt.csv` (`t_s,...,wy,...`), any ground-truth file the readers know (ECD
-    /// `groundtruth.txt`, MVSEC `*_gt.hdf5`), or a CSV with `t_s,yaw_rate` columns.
-    #[arg(long)]
-    pub gt: PathBuf,
-    /// Gyro to evaluate alongside (`imu.txt` `t ax ay az gx gy gz`, AEDAT4, MVSEC HDF5).
+    /// `groundtruth.txt`, MVSEC `*_gt.hdf5`), or a CSV with `t_s,yaw_rate` columns. Without
+    /// it, the gyro (`--imu`) is the reference: a recording with an IMU and no ground truth.
+    #[arg(long, required_unless_present = "imu")]
+    pub gt: Option<PathBuf>,
+    /// Gyro to evaluate alongside the estimate (`imu.txt` `t ax ay az gx gy gz`, AEDAT4, MVSEC
+    /// HDF5), or, without `--gt`, to evaluate the estimate against.
     #[arg(long)]
     pub imu: Option<PathBuf>,
     /// Draw estimate, ground truth (and gyro) yaw rate and integrated heading into this PNG.
@@ -42,25 +45,37 @@ pub struct Args {
 /// chunks (constant memory whatever their lengths, see [`Evaluator`]); nothing is written or
 /// printed before the whole of them has been read and checked.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // What the estimate is compared with: the ground truth, or without it the gyro.
+    let reference: &Path = match (&args.gt, &args.imu) {
+        (Some(gt), _) => gt,
+        (None, Some(imu)) => imu,
+        (None, None) => bail!("--gt or --imu is needed: the yaw rate to compare the estimate with"),
+    };
     if let Some(p) = &args.plot {
-        let mut inputs = vec![args.yaw.as_path(), args.gt.as_path()];
+        let mut inputs = vec![args.yaw.as_path(), reference];
         inputs.extend(args.imu.as_deref());
         crate::output::check_distinct(&inputs, &[("--plot", p)])?;
     }
     // The estimate's header first: a file that is not an estimate is the first error.
     let mut est = EstimateReader::open(&args.yaw)?;
-    let gt = TruthReader::open(&args.gt)?;
-    let gyro = match args.imu.as_deref() {
-        Some(p) => Some(Box::new(GyroYawReader::open(p)?) as Box<dyn SampleSource>),
-        None => None,
+    let (truth, gyro): (Box<dyn SampleSource>, _) = match &args.gt {
+        Some(gt) => {
+            let truth = Box::new(TruthReader::open(gt)?);
+            let gyro = match args.imu.as_deref() {
+                Some(p) => Some(Box::new(GyroYawReader::open(p)?) as Box<dyn SampleSource>),
+                None => None,
+            };
+            (truth, gyro)
+        }
+        None => (Box::new(GyroYawReader::open(reference)?), None),
     };
     let opts = EvalOptions {
         resample: args.resample,
         plot_points: args.plot.is_some(),
         ..EvalOptions::default()
     };
-    let context = format!("{} vs {}", args.yaw.display(), args.gt.display());
-    let mut ev = Evaluator::from_sources(est.kind(), Box::new(gt), gyro, &opts)
+    let context = format!("{} vs {}", args.yaw.display(), reference.display());
+    let mut ev = Evaluator::from_sources(est.kind(), truth, gyro, &opts)
         .with_context(|| context.clone())?
         .labelled(context);
     let mut chunk = Vec::with_capacity(eval::CHUNK);
@@ -84,13 +99,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 || args.yaw.display().to_string(),
                 |n| n.to_string_lossy().into()
             ),
-            args.gt.display()
+            reference.display()
         );
         eval::plot::plot_report(&report, &title, p)?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
+        if args.gt.is_none() {
+            println!(
+                "reference: the gyro of {} (no ground truth given; \"ground truth\" below is the gyro)",
+                reference.display()
+            );
+        }
         print!("{}", report.to_text());
         if let Some(p) = &args.plot {
             println!("plot: {}", p.display());
