@@ -8,10 +8,11 @@ use core_nostd::flags as yaw_flags;
 use super::{raise_flags, update_stats, ByteSource, CostMeter, FrameSender, Overload, SourceError};
 
 /// Bytes read from the source per call (at most: a live link's source returns what it has).
-/// About one frame: each call costs the link receiver a few header checks and searches,
-/// whatever its length (QEMU, dev03's stream: 13.5 instructions per byte at 256, 11.8 at
-/// 1 024, 11.6 at 2 048).
-const CHUNK: usize = 1024;
+/// Each call costs the link receiver a few header checks and searches whatever its length, but
+/// on QEMU's single executor the processing stage runs between reads: 1 KiB reads took a
+/// replay's input from 13.5 to 11.8 instructions per byte, and the live overload run's output
+/// after its storm from 0.5 % to 2.4 % of the peak off the replay (`xtask/tests/qemu.rs`).
+const CHUNK: usize = 256;
 
 /// Publishes the receiver's counters and raises INPUT_ERRORS when frames were lost.
 fn publish(link: &LinkReceiver, errors_seen: &mut u64) {
