@@ -56,9 +56,9 @@ pub struct FrameBuf {
     /// process what is queued, then stop).
     kind: u8,
     /// Header flags.
-    pub flags: u8,
+    flags: u8,
     /// Sequence counter.
-    pub seq: u16,
+    seq: u16,
     /// Payload length in bytes (`<= MAX_PAYLOAD`).
     len: u16,
     /// Payload bytes (`len` valid).
@@ -93,19 +93,19 @@ impl FrameBuf {
     /// Becomes the end of the stream.
     pub fn set_end(&mut self) {
         self.kind = 0;
-        self.len = 0;
     }
 
-    /// The frame's kind; `None` at the end of the stream.
-    pub fn kind(&self) -> Option<Kind> {
-        Kind::from_nibble(self.kind)
-    }
-
-    /// The valid payload bytes.
-    pub fn payload(&self) -> &[u8] {
-        self.payload
-            .get(..usize::from(self.len))
-            .unwrap_or_default()
+    /// The frame, read in place; `None` at the end of the stream.
+    pub fn frame(&self) -> Option<Frame<'_>> {
+        Some(Frame {
+            kind: Kind::from_nibble(self.kind)?,
+            flags: self.flags,
+            seq: self.seq,
+            payload: self
+                .payload
+                .get(..usize::from(self.len))
+                .unwrap_or_default(),
+        })
     }
 }
 

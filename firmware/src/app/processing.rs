@@ -74,9 +74,8 @@ impl<K: YawSink> Out<'_, K> {
 }
 
 /// Runs the processing stage on the frames of `queue` until the end of the stream (replays) or
-/// a configuration frame that
-/// differs from `current` and that `accept`s (then the samples due up to the last event are
-/// emitted first); forever on a live link otherwise. `seq` is the yaw frames' sequence
+/// a configuration frame that differs from `current` and that `accept`s (then the samples due
+/// up to the last event are emitted first); forever on a live link otherwise. `seq` is the yaw frames' sequence
 /// counter, carried over from and to the previous and next run.
 pub async fn run<K: YawSink, M: CostMeter>(
     queue: &mut FrameReceiver,
@@ -110,7 +109,7 @@ pub async fn run<K: YawSink, M: CostMeter>(
                 }
             }
         };
-        let Some(kind) = slot.kind() else {
+        let Some(f) = slot.frame() else {
             queue.receive_done();
             // As `host-sim run`: the samples due up to the last event's time.
             if let Some((t, _)) = last {
@@ -120,9 +119,8 @@ pub async fn run<K: YawSink, M: CostMeter>(
             *seq = out.seq;
             return Exit::End;
         };
-        let frame = &*slot;
-        if kind == Kind::Config {
-            let parsed = Settings::parse(frame.payload());
+        if f.kind == Kind::Config {
+            let parsed = Settings::parse(f.payload);
             queue.receive_done();
             update_stats(|st| st.frames_processed += 1);
             match parsed {
@@ -143,12 +141,6 @@ pub async fn run<K: YawSink, M: CostMeter>(
             }
             continue;
         }
-        let f = core_nostd::aer::frame::Frame {
-            kind,
-            flags: frame.flags,
-            seq: frame.seq,
-            payload: frame.payload(),
-        };
         let (cost, events, last_t) = pipeline.with(FrameEvents::<K, M> {
             payload: &mut payload,
             frame: &f,

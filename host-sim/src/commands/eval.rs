@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 
 use crate::eval::{
     self, EstimateReader, EvalOptions, Evaluator, GyroYawReader, Resample, SampleSource,
@@ -46,11 +46,11 @@ pub struct Args {
 /// printed before the whole of them has been read and checked.
 pub fn run(args: Args) -> anyhow::Result<()> {
     // What the estimate is compared with: the ground truth, or without it the gyro.
-    let reference: &Path = match (&args.gt, &args.imu) {
-        (Some(gt), _) => gt,
-        (None, Some(imu)) => imu,
-        (None, None) => bail!("--gt or --imu is needed: the yaw rate to compare the estimate with"),
-    };
+    let reference: &Path = args
+        .gt
+        .as_deref()
+        .or(args.imu.as_deref())
+        .context("--gt or --imu is needed: the yaw rate to compare the estimate with")?;
     if let Some(p) = &args.plot {
         let mut inputs = vec![args.yaw.as_path(), reference];
         inputs.extend(args.imu.as_deref());
