@@ -240,6 +240,10 @@ pub struct Trigger {
     /// instead of the layout's stride. Zero unless the sink asks for them ([`NetSink::NEAR`])
     /// and the stride is above 1.
     pub near_drive: [Trace; 2],
+    /// Drives `w_T · I_F(t⁻)` from the pixels the layout's stride above and below (what a
+    /// vertical unit pair would receive; [`crate::readout::aperture`]). Zero unless the sink
+    /// asks for them ([`NetSink::VERTICAL`]) and where the layout has no such pixel.
+    pub vertical_drive: [Trace; 2],
 }
 
 /// Most spikes the network hands a sink at once ([`NetSink::spikes`]).
@@ -257,6 +261,9 @@ pub trait NetSink {
     /// away). When `false` the network reads only the layout's stride (the near drives cost
     /// two more neighbour reads per onset).
     const NEAR: bool = false;
+    /// Whether this sink wants the vertical drives in its [`Trigger`]s (two more neighbour
+    /// reads per onset).
+    const VERTICAL: bool = false;
     /// With [`NetSink::NEAR`]: which FAC pixels to read for the next event, at row `y` (the
     /// drives of those not read are zero).
     fn reads(&self, _y: u16) -> Reads {
@@ -974,6 +981,16 @@ impl<'a, L: Layout> Network<'a, L> {
         } else {
             [Trace::ZERO; 2]
         };
+        let vertical_drive = if S::VERTICAL {
+            let s = i32::from(self.stride);
+            let row = |dy: i32| {
+                let y = u16::try_from(i32::from(ev.y) + dy).ok()?;
+                self.layout.cell(ev.x, y)
+            };
+            drives([self.fac_at(row(-s), ev.t_us), self.fac_at(row(s), ev.t_us)])
+        } else {
+            [Trace::ZERO; 2]
+        };
         let Some(cell) = self.cells.get_mut(c) else {
             return;
         };
@@ -1015,6 +1032,7 @@ impl<'a, L: Layout> Network<'a, L> {
                 slow_drive: slow.map(|i| kernel.drive(i)),
                 own_slow,
                 near_drive,
+                vertical_drive,
             });
         }
     }

@@ -629,6 +629,13 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             }
         };
         let (near_lr, near_rl) = (near_at(0, -1), near_at(1, 1));
+        // The pixels the stride above and below ([`crate::readout::aperture`]).
+        let row = |dy: i32| {
+            u16::try_from(i32::from(y) + dy)
+                .ok()
+                .and_then(|ny| self.layout.cell(x, ny))
+        };
+        let vertical = [row(-s), row(s)].map(|c| self.traces_at(c, t).0);
         let slow_onset = was_on != on
             || own_slow_now
                 < self.p.w_fac
@@ -691,6 +698,19 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let Some(((dt_s, positive), pop)) = decoded else {
             return;
         };
+        // An edge that moves mostly vertically (the paper's units' decodes).
+        let l2_h = -dt_s * 1e6 / (self.p.tau_fac * core::f64::consts::LN_2);
+        let gated = pop == 0
+            && aperture_moves_vertically(
+                l2_h,
+                [stride, f64::from(self.layout.stride())],
+                vertical.map(|v| log2_to(v, own)),
+                log2_to(own_now, own),
+                (min_drive / (self.p.w_trg * own)).log2(),
+            );
+        if gated {
+            return;
+        }
         let dx = f64::from(x) - self.cx;
         let g = self.focal + dx * dx / self.focal;
         let w = stride / (dt_s * g);
@@ -885,6 +905,10 @@ struct SpikePopulation {
     fast_reach_s: Option<f64>,
 }
 
+/// A pixel's last decoded onset in a [`SpikePopulation`]: `(time, own trace after it, whether
+/// the onset before it came within the busy window)`.
+type DecodedOnset = Option<(f64, f64, bool)>;
+
 /// What a population's decodes go to (the parts [`OracleSpikeYaw`] shares between them).
 struct SpikeTarget<'t, L: crate::layout::Layout> {
     layout: &'t L,
@@ -898,6 +922,9 @@ struct SpikeTarget<'t, L: crate::layout::Layout> {
     samples: &'t mut u64,
     /// For the layout's paper's units beside near units: the near units' decoder state.
     near: Option<NearView<'t>>,
+    /// The other population of the paper's units' decoded onsets (the near units' for the
+    /// layout's, the layout's for the near units'), for the vertical neighbours.
+    other_onsets: Option<&'t [DecodedOnset]>,
 }
 
 /// What the layout's units read of the near units' decoding (see
@@ -1079,9 +1106,17 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         if k >= self.pops.len() {
             return;
         }
-        let (head, tail) = self.pops.split_at_mut(k + 1);
-        let Some(pop) = head.last_mut() else {
+        let (head, rest) = self.pops.split_at_mut(k);
+        let Some((pop, tail)) = rest.split_first_mut() else {
             return;
+        };
+        let other_onsets = if pop.fast_reach_s.is_some() {
+            None
+        } else {
+            head.iter()
+                .chain(tail.iter())
+                .find(|q| q.fast_reach_s.is_none() && q.near != pop.near)
+                .map(|q| &q.onsets[..])
         };
         let near = if pop.fast_reach_s.is_none() && !pop.near {
             tail.iter().find(|q| q.near).map(|q| NearView {
@@ -1109,6 +1144,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             near_floor_s: self.near_floor_s,
             samples: &mut self.samples,
             near,
+            other_onsets,
         };
         f(pop, &mut target);
     }
@@ -1461,6 +1497,9 @@ impl SpikePopulation {
                 let Some(dt_s) = read else {
                     return true;
                 };
+                if self.moves_vertically(target, (x, y), t_trg, own, ratio.log2()) {
+                    return true;
+                }
                 dt_s
             }
         };
@@ -1470,6 +1509,85 @@ impl SpikePopulation {
         target.field.add(x, y, if u == 1 { w } else { -w });
         *target.samples += 1;
         true
+    }
+}
+
+/// [`crate::readout::aperture::moves_vertically`] in f64: `log2` ratios to the pixel's
+/// ceiling of the decode (`l2_h`, over `s_h` px), of the drives from the pixels `s_v` rows
+/// above and below (`None`: no onset), of the own trace before the onset and of the smallest
+/// drive that bursts.
+fn aperture_moves_vertically(
+    l2_h: f64,
+    [s_h, s_v]: [f64; 2],
+    vertical: [Option<f64>; 2],
+    own_before: Option<f64>,
+    reach: f64,
+) -> bool {
+    use crate::readout::aperture::{AFTER_OWN_LOG2, STEEPNESS};
+    let (later, other) = match vertical {
+        [Some(a), Some(b)] => (a.max(b), Some(a.min(b))),
+        [Some(a), None] | [None, Some(a)] => (a, None),
+        [None, None] => return false,
+    };
+    let dominance = f64::from(crate::readout::calibrated::DOMINANCE_LOG2);
+    let dominant = other.is_none_or(|o| later - o >= dominance);
+    let after_own = own_before.is_none_or(|p| later >= p + f64::from(AFTER_OWN_LOG2) / 65_536.0);
+    let steep = -later * s_h > STEEPNESS as f64 * -l2_h * s_v;
+    dominant && later >= reach && after_own && steep
+}
+
+/// `log2(x / ceiling)`, `None` for no trace.
+fn log2_to(x: f64, ceiling: f64) -> Option<f64> {
+    (x > 0.0).then(|| (x / ceiling).log2())
+}
+
+impl SpikePopulation {
+    /// [`crate::readout::spikes`]' aperture gate: the decode `l2_h` of the onset at `t_trg` of
+    /// pixel `(x, y)` (own trace `own` after it) against the last onsets at or before it
+    /// decoded by either population of the paper's units the stride above and below.
+    fn moves_vertically<L: crate::layout::Layout>(
+        &self,
+        target: &SpikeTarget<'_, L>,
+        (x, y): (u16, u16),
+        t_trg: f64,
+        own: f64,
+        l2_h: f64,
+    ) -> bool {
+        let p = self.p;
+        let s = i32::from(target.layout.stride());
+        let last_before = |onsets: &[DecodedOnset], i: usize| {
+            onsets
+                .get(i)
+                .copied()
+                .flatten()
+                .filter(|&(t0, _, _)| t0 <= t_trg)
+                .map(|(t0, own, _)| (t_trg - t0, own))
+        };
+        let vertical = [-s, s].map(|dy| {
+            let row = u16::try_from(i32::from(y) + dy).ok()?;
+            let i = target.layout.cell(x, row)?;
+            let mine = last_before(&self.onsets, i);
+            let theirs = target.other_onsets.and_then(|o| last_before(o, i));
+            let (age, own_v) = match (mine, theirs) {
+                (Some(a), Some(b)) => {
+                    if a.0 <= b.0 {
+                        a
+                    } else {
+                        b
+                    }
+                }
+                (a, b) => a.or(b)?,
+            };
+            log2_to(own_v * (-age / p.tau_fac).exp(), own)
+        });
+        let s_h = if self.near { 1.0 } else { f64::from(s) };
+        aperture_moves_vertically(
+            l2_h,
+            [s_h, f64::from(s)],
+            vertical,
+            log2_to(own - p.w_fac, own),
+            (self.min_drive() / (p.w_trg * own)).log2(),
+        )
     }
 }
 

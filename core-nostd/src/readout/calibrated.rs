@@ -35,6 +35,12 @@
 //! units while their decodes agree in sign at least as much (see
 //! [`stride_choice`](super::stride_choice)).
 //!
+//! # Edges that move vertically
+//! A decode of the paper's units (either stride) whose edge, by the drives from the pixels the
+//! stride above and below (the network hands them over, [`NetSink::VERTICAL`]), moves mostly
+//! vertically is not read: under pitch and roll its horizontal crossing time is mostly the
+//! vertical flow times the edge's slope (see [`aperture`]).
+//!
 //! # From bursts to one rate
 //! Decoded rates go to the [`field`](super::field) estimator: regions mirrored about the
 //! principal point cancel forward translation, pitch and roll; the rotation must hold in
@@ -49,6 +55,7 @@
 
 use fixed::types::{I16F16, U16F16};
 
+use super::aperture::{self, Around};
 use super::field::{Field, FieldSettings, Population};
 use super::shared::{field_over, min_burst_drive, OutputGate, RateDecoder};
 use super::stride_choice::{Stride, StrideChoice};
@@ -181,6 +188,12 @@ pub struct Calibrated {
     min_drive: Trace,
     /// Own fast trace (after the event) below which the slow units are decoded.
     slow_scene_own: Trace,
+    /// `w_F`: what an onset adds to its pixel's own trace.
+    w_fac: Trace,
+    /// `log2` of [`Calibrated::min_drive`]'s bits (Q16).
+    log2_min_drive: i32,
+    /// The layout's stride (px).
+    stride_px: u16,
     /// Warm-up and refresh of the output.
     gate: OutputGate,
     /// Whether the near units or the layout's are decoded.
@@ -220,6 +233,9 @@ impl Calibrated {
             w_trg: p.w_trg.to_bits(),
             min_drive: min_burst_drive(kernel),
             slow_scene_own: Trace::saturating_from_num(p.w_fac).saturating_add(SLOW_SCENE_MARGIN),
+            w_fac: Trace::saturating_from_num(p.w_fac),
+            log2_min_drive: log2_q16(u64::from(min_burst_drive(kernel).to_bits()), 0),
+            stride_px: layout.stride(),
             gate: OutputGate::new(cal.period_us, WARMUP_US),
             stride: StrideChoice::new(near_units),
             near_units,
@@ -247,12 +263,36 @@ impl Calibrated {
 
     /// [`Calibrated::decode_dt`] with the pixel's [`Calibrated::ceiling`] known.
     fn decode_dt_below(&self, drive: Trace, ceiling: u64, log2_tau: i32) -> Option<i32> {
+        RateDecoder::log2_dt_s(self.log2_to_ceiling(drive, ceiling)?, log2_tau)
+    }
+
+    /// `log2(drive / ceiling)` (Q16, below 0 for a drive that codes a crossing), if the drive
+    /// makes a burst.
+    fn log2_to_ceiling(&self, drive: Trace, ceiling: u64) -> Option<i32> {
         if drive < self.min_drive || ceiling == 0 {
             return None;
         }
-        // l = log2(drive / (w_T · own)) < 0.
-        let l = log2_q16(u64::from(drive.to_bits()), 0).saturating_sub(log2_q16(ceiling, 0));
-        RateDecoder::log2_dt_s(l, log2_tau)
+        Some(log2_q16(u64::from(drive.to_bits()), 0).saturating_sub(log2_q16(ceiling, 0)))
+    }
+
+    /// Whether a decode of the paper's units (`log2` ratio `l2_h` to the `ceiling`, at
+    /// `stride`) times an edge that moves mostly vertically ([`aperture`]).
+    fn moves_vertically(&self, t: &Trigger, l2_h: i32, stride: Stride, ceiling: u64) -> bool {
+        if t.vertical_drive == [Trace::ZERO; 2] || ceiling == 0 {
+            return false;
+        }
+        let l2c = log2_q16(ceiling, 0);
+        let ratio = |bits: u64| (bits > 0).then(|| log2_q16(bits, 0).saturating_sub(l2c));
+        let around = Around {
+            vertical: t.vertical_drive.map(|d| ratio(u64::from(d.to_bits()))),
+            own_before: ratio(self.ceiling(t.own_fac.saturating_sub(self.w_fac))),
+            reach: self.log2_min_drive.saturating_sub(l2c),
+        };
+        let s_h = match stride {
+            Stride::Near => 1,
+            Stride::Layout => self.stride_px,
+        };
+        aperture::moves_vertically(l2_h, [s_h, self.stride_px], &around)
     }
 
     /// The paper's units' drive (of the stronger unit) and direction (`true`: right-to-left),
@@ -296,6 +336,7 @@ impl NetSink for Calibrated {
     const SPIKES: bool = false;
     const SLOW: bool = true;
     const NEAR: bool = true;
+    const VERTICAL: bool = true;
 
     fn reads(&self, y: u16) -> Reads {
         if !self.near_units {
@@ -334,9 +375,14 @@ impl NetSink for Calibrated {
         }
         let [tau_fast, _] = self.log2_tau;
         let fast = fast.and_then(|(drive, positive)| {
-            self.decode_dt_below(drive, ceiling, tau_fast)
-                .map(|dt| (dt, positive))
+            let l = self.log2_to_ceiling(drive, ceiling)?;
+            Some((l, RateDecoder::log2_dt_s(l, tau_fast)?, positive))
         });
+        let fast = match fast {
+            // An edge that moves mostly vertically says little about the rotation.
+            Some((l, _, _)) if self.moves_vertically(t, l, stride, ceiling) => return,
+            f => f.map(|(_, dt, positive)| (dt, positive)),
+        };
         let (dt, positive, pop) = match fast {
             Some((dt, positive)) => (dt, positive, Population::Fast),
             None => {

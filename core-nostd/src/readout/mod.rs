@@ -7,8 +7,10 @@
 //! - [`normalized`]: the paper's readout, a leaky integrator of right-to-left minus
 //!   left-to-right spikes; divided by its maximum over the recording afterwards (host only).
 //! - [`field`], [`shared`]: the rotation estimator and the pieces the rad/s readouts share;
-//!   [`stride_choice`]: whether the calibrated readout decodes the near units or the layout's.
+//!   [`stride_choice`]: whether the calibrated readout decodes the near units or the layout's;
+//!   [`aperture`]: which decodes time an edge that moves mostly vertically (not read).
 
+pub mod aperture;
 pub mod calibrated;
 pub mod field;
 pub mod normalized;
