@@ -588,9 +588,13 @@ mod live_overload {
     }
 
     /// Once the rate falls, the output returns to the replay's: from SETTLE_S after the storm,
-    /// within 2 % of the peak yaw rate on 95 % of the samples (the readout's gates are
-    /// thresholds: right after the quiet spell one side may answer a refresh, 4 ms, before the
-    /// other; the worst is reported).
+    /// within 0.5 % of the peak yaw rate on half the samples and within 5 % on 95 % of them (the
+    /// readout's gates are thresholds: right after the quiet spell one side may answer a
+    /// refresh, 4 ms, before the other; and its slowest memories, the stride choice's sign
+    /// counts over 1 s and the slow units' 100 ms histograms, still hold the storm's decodes,
+    /// which the live run lost in part: the same recording on the host with every fourth block
+    /// of 300 of the storm's events dropped leaves 2.4 % of the peak off the full one on 5 % of
+    /// the samples before the aperture gate and 4.2 % after it; the worst is reported).
     #[test]
     #[ignore = "needs QEMU and the QEMU firmware build (cargo xtask test)"]
     fn after_the_storm_the_output_returns_to_the_replay() {
@@ -613,17 +617,21 @@ mod live_overload {
             "only {compared} samples after the storm to compare with the replay"
         );
         let worst = diffs.last().copied().unwrap_or(0.0);
+        let median_rel = diffs.get(compared / 2).copied().unwrap_or(0.0) / peak;
         let p95 = diffs.get(compared * 95 / 100).copied().unwrap_or(0.0);
         let p95_rel = p95 / peak;
         eprintln!(
             "overload: from {:.2} s on, |live - replay| <= {p95:.6} rad/s ({:.3} % of peak) on \
-             95 % of {compared} samples (worst {worst:.4})",
+             95 % of {compared} samples, {:.3} % on half (worst {worst:.4})",
             FLICKER_END_S + SETTLE_S,
-            p95_rel * 100.0
+            p95_rel * 100.0,
+            median_rel * 100.0
         );
         assert!(
-            p95_rel <= 0.02,
-            "the output did not recover ({:.2} % of peak off the replay on 5 % of the samples)",
+            median_rel <= 0.005 && p95_rel <= 0.05,
+            "the output did not recover ({:.2} % of peak off the replay on half the samples, \
+             {:.2} % on 5 %)",
+            median_rel * 100.0,
             p95_rel * 100.0
         );
     }
