@@ -590,9 +590,9 @@ mod live_overload {
     /// Once the rate falls, the output returns to the replay's: from SETTLE_S after the storm,
     /// within 0.5 % of the peak yaw rate on half the samples and within 5 % on 95 % of them (the
     /// readout's gates are thresholds: right after the quiet spell one side may answer a
-    /// refresh, 4 ms, before the other; and its slowest memories, the stride choice's sign
-    /// counts over 1 s and the slow units' 100 ms histograms, still hold the storm's decodes,
-    /// which the live run lost in part: the same recording on the host with every fourth block
+    /// refresh, 4 ms, before the other; and its slower memories, such as the stride choice's
+    /// sign counts over 1 s, may still hold the storm's decodes, which the live run lost in
+    /// part: the same recording on the host with every fourth block
     /// of 300 of the storm's events dropped leaves 2.4 % of the peak off the full one on 5 % of
     /// the samples before the aperture gate and 4.2 % after it; the worst is reported).
     #[test]
