@@ -32,7 +32,7 @@
 //! RMSE / peak. Times are compared as log ratios to the pixel's ceiling (`log2(D / (w_T ·
 //! own))`, Q16: `-dt / (tau_F ln 2)` for an onset `dt` ago), as both rad/s readouts have them.
 
-use crate::readout::calibrated::DOMINANCE_LOG2;
+use super::shared::DOMINANCE_LOG2;
 
 /// An edge is steep when its time surface rises more than this many times faster per pixel
 /// vertically than horizontally.

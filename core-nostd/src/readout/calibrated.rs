@@ -66,17 +66,13 @@ use crate::network::{NetSink, Reads, Trigger};
 use crate::params::{Trace, TAU_SLOW_US};
 use crate::unit::Kernel;
 
-pub use super::shared::{REFRESH_US, WARMUP_US};
+pub use super::shared::{DOMINANCE_LOG2, REFRESH_US, WARMUP_US};
 
 /// The slow units are decoded only at pixels whose own fast FAC trace, after the event, is below
 /// `w_F` plus this: the pixel had no onset in the last ~46 ms, so the scene moves slowly there.
 /// Where edges pass fast, a fast unit that does not burst means its FAC pixel missed the edge,
 /// and the slow trace would time an older edge instead.
 const SLOW_SCENE_MARGIN: Trace = Trace::from_bits(0x00CC_CCCD); // 0.1
-
-/// A unit's drive must be at least `2^DOMINANCE_LOG2` times its twin's (the unit at the same
-/// pixel facing the other way) to be decoded.
-pub const DOMINANCE_LOG2: u32 = 1;
 
 /// Slow traces at or above this level are not decoded (they may have saturated).
 const SLOW_TRACE_LIMIT: Trace = Trace::const_from_int(8);

@@ -19,6 +19,11 @@ pub const LOG2_1E6: i32 = 1_306_235;
 /// edges crossing.
 pub const WARMUP_US: u32 = 20_000;
 
+/// A unit's drive must be at least `2^DOMINANCE_LOG2` times its twin's (the unit at the same
+/// pixel facing the other way) to be decoded, in both rad/s readouts; and a vertical neighbour's
+/// trace the other's to say where an edge came from ([`super::aperture`]).
+pub const DOMINANCE_LOG2: u32 = 1;
+
 /// The field is read at most this often (µs): every 4th output at 1 kHz. Reading it costs about
 /// as much as a few hundred events on a Cortex-M4, and its histograms change over `tau_A`
 /// (10 ms), not over one period.

@@ -134,7 +134,8 @@ use super::aperture::{self, Around};
 use super::calibrated::{has_near, Calibration, SLOW_TAU_A_US};
 use super::field::{Field, Population};
 use super::shared::{
-    field_over, min_burst_drive, window_log2_s, OutputGate, RateDecoder, LOG2_1E6, WARMUP_US,
+    field_over, min_burst_drive, window_log2_s, OutputGate, RateDecoder, DOMINANCE_LOG2, LOG2_1E6,
+    WARMUP_US,
 };
 use super::stride_choice::{Stride, StrideChoice};
 use super::{Readout, Side};
@@ -178,10 +179,6 @@ pub const SAME_ONSET_US: u32 = 250;
 /// [`SpikeCell::onset`]'s bit saying that the onset before the last one came within the busy
 /// window before it.
 const BUSY: u32 = 1 << 2;
-
-/// A unit's drive must be at least `2^DOMINANCE_LOG2` times its twin's (the unit at the same
-/// pixel facing the other way) when both answer one TRG event.
-const DOMINANCE_LOG2: i32 = 1;
 
 /// Every cell is visited by the sweep at least this often (µs), well within the 2^23 µs a
 /// 24-bit time can be told from.
@@ -1000,7 +997,7 @@ impl<'a> Decoding<'a> {
             }
         };
         let l2d = l2_unpack(l2d);
-        let needed = l2d.saturating_sub(DOMINANCE_LOG2 << 16);
+        let needed = l2d.saturating_sub((DOMINANCE_LOG2 << 16) as i32);
         let add = match (answer, now) {
             (Some(l2), _) => l2 <= needed,
             (None, None) => true,
