@@ -242,7 +242,8 @@ pub struct Trigger {
     pub near_drive: [Trace; 2],
     /// Drives `w_T · I_F(t⁻)` from the pixels the layout's stride above and below (what a
     /// vertical unit pair would receive; [`crate::readout::aperture`]). Zero unless the sink
-    /// asks for them ([`NetSink::VERTICAL`]) and where the layout has no such pixel.
+    /// asks for them ([`NetSink::VERTICAL`]), for an onset none of whose drives (`drive`,
+    /// `near_drive`) makes a burst, and where the layout has no such pixel.
     pub vertical_drive: [Trace; 2],
 }
 
@@ -262,7 +263,7 @@ pub trait NetSink {
     /// two more neighbour reads per onset).
     const NEAR: bool = false;
     /// Whether this sink wants the vertical drives in its [`Trigger`]s (two more neighbour
-    /// reads per onset).
+    /// reads per onset whose units burst).
     const VERTICAL: bool = false;
     /// With [`NetSink::NEAR`]: which FAC pixels to read for the next event, at row `y` (the
     /// drives of those not read are zero).
@@ -464,6 +465,8 @@ pub struct Network<'a, L: Layout> {
     /// Slow FAC trace level below which the last slow onset is older than
     /// [`SLOW_ONSET_GAP_US`].
     slow_onset_level: Trace,
+    /// Smallest drive that makes a unit at rest burst ([`Kernel::min_burst_drive`]).
+    burst_drive: Trace,
     /// Next cell of the round-robin clock refresh.
     refresh: usize,
     /// The latest time up to which any unit's spikes have been emitted (`None`: none yet): an
@@ -677,6 +680,7 @@ impl<'a, L: Layout> Network<'a, L> {
             filter,
             onset_level,
             slow_onset_level,
+            burst_drive: kernel.min_burst_drive(),
             refresh: 0,
             emitted_until: None,
             stats: NetStats::default(),
@@ -981,7 +985,8 @@ impl<'a, L: Layout> Network<'a, L> {
         } else {
             [Trace::ZERO; 2]
         };
-        let vertical_drive = if S::VERTICAL {
+        let bursts = |d: &Trace| *d >= self.burst_drive;
+        let vertical_drive = if S::VERTICAL && drive.iter().chain(&near_drive).any(bursts) {
             let s = i32::from(self.stride);
             let row = |dy: i32| {
                 let y = u16::try_from(i32::from(ev.y) + dy).ok()?;

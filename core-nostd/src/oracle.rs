@@ -629,13 +629,6 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             }
         };
         let (near_lr, near_rl) = (near_at(0, -1), near_at(1, 1));
-        // The pixels the stride above and below ([`crate::readout::aperture`]).
-        let row = |dy: i32| {
-            u16::try_from(i32::from(y) + dy)
-                .ok()
-                .and_then(|ny| self.layout.cell(x, ny))
-        };
-        let vertical = [row(-s), row(s)].map(|c| self.traces_at(c, t).0);
         let slow_onset = was_on != on
             || own_slow_now
                 < self.p.w_fac
@@ -698,18 +691,24 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let Some(((dt_s, positive), pop)) = decoded else {
             return;
         };
-        // An edge that moves mostly vertically (the paper's units' decodes).
-        let l2_h = -dt_s * 1e6 / (self.p.tau_fac * core::f64::consts::LN_2);
-        let gated = pop == 0
-            && aperture_moves_vertically(
+        if pop == 0 {
+            // An edge that moves mostly vertically (the paper's units' decodes), by the traces
+            // of the pixels the stride above and below.
+            let row = |dy: i32| {
+                u16::try_from(i32::from(y) + dy)
+                    .ok()
+                    .and_then(|ny| self.layout.cell(x, ny))
+            };
+            let l2_h = -dt_s * 1e6 / (self.p.tau_fac * core::f64::consts::LN_2);
+            if aperture_moves_vertically(
                 l2_h,
                 [stride, f64::from(self.layout.stride())],
-                vertical.map(|v| log2_to(v, own)),
+                [row(-s), row(s)].map(|c| log2_to(self.traces_at(c, t).0, own)),
                 log2_to(own_now, own),
                 (min_drive / (self.p.w_trg * own)).log2(),
-            );
-        if gated {
-            return;
+            ) {
+                return;
+            }
         }
         let dx = f64::from(x) - self.cx;
         let g = self.focal + dx * dx / self.focal;
@@ -1512,7 +1511,7 @@ impl SpikePopulation {
     }
 }
 
-/// [`crate::readout::aperture::moves_vertically`] in f64: `log2` ratios to the pixel's
+/// [`crate::readout::aperture::moves_vertically`] on f64 values: `log2` ratios to the pixel's
 /// ceiling of the decode (`l2_h`, over `s_h` px), of the drives from the pixels `s_v` rows
 /// above and below (`None`: no onset), of the own trace before the onset and of the smallest
 /// drive that bursts.
@@ -1523,17 +1522,21 @@ fn aperture_moves_vertically(
     own_before: Option<f64>,
     reach: f64,
 ) -> bool {
-    use crate::readout::aperture::{AFTER_OWN_LOG2, STEEPNESS};
-    let (later, other) = match vertical {
-        [Some(a), Some(b)] => (a.max(b), Some(a.min(b))),
-        [Some(a), None] | [None, Some(a)] => (a, None),
-        [None, None] => return false,
+    // The rule itself, on the ratios rounded to its Q16 (an error of 2^-17 in log2, 0.0005 %).
+    let q16 = |v: f64| {
+        (v * 65_536.0)
+            .round()
+            .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
     };
-    let dominance = f64::from(crate::readout::calibrated::DOMINANCE_LOG2);
-    let dominant = other.is_none_or(|o| later - o >= dominance);
-    let after_own = own_before.is_none_or(|p| later >= p + f64::from(AFTER_OWN_LOG2) / 65_536.0);
-    let steep = -later * s_h > STEEPNESS as f64 * -l2_h * s_v;
-    dominant && later >= reach && after_own && steep
+    crate::readout::aperture::moves_vertically(
+        q16(l2_h),
+        [s_h, s_v].map(|s| s as u16),
+        &crate::readout::aperture::Around {
+            vertical: vertical.map(|v| v.map(q16)),
+            own_before: own_before.map(q16),
+            reach: q16(reach),
+        },
+    )
 }
 
 /// `log2(x / ceiling)`, `None` for no trace.
@@ -1566,18 +1569,11 @@ impl SpikePopulation {
         let vertical = [-s, s].map(|dy| {
             let row = u16::try_from(i32::from(y) + dy).ok()?;
             let i = target.layout.cell(x, row)?;
-            let mine = last_before(&self.onsets, i);
-            let theirs = target.other_onsets.and_then(|o| last_before(o, i));
-            let (age, own_v) = match (mine, theirs) {
-                (Some(a), Some(b)) => {
-                    if a.0 <= b.0 {
-                        a
-                    } else {
-                        b
-                    }
-                }
-                (a, b) => a.or(b)?,
-            };
+            let (age, own_v) = [Some(&self.onsets[..]), target.other_onsets]
+                .into_iter()
+                .flatten()
+                .filter_map(|onsets| last_before(onsets, i))
+                .min_by(|a, b| a.0.total_cmp(&b.0))?;
             log2_to(own_v * (-age / p.tau_fac).exp(), own)
         });
         let s_h = if self.near { 1.0 } else { f64::from(s) };

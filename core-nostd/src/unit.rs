@@ -265,6 +265,24 @@ impl Kernel {
         peak48 + v48 >= 1 << 48
     }
 
+    /// Smallest TRG drive that makes a unit at rest burst (`q·tau/e >= 1`).
+    pub fn min_burst_drive(&self) -> Trace {
+        let (mut lo, mut hi) = (0u32, crate::params::TRACE_MAX.to_bits());
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            let u = UnitState {
+                i_trg: Trace::from_bits(mid),
+                ..UnitState::default()
+            };
+            if self.may_spike(&u) {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        Trace::from_bits(lo)
+    }
+
     /// Whether the unit, left alone, will spike again (it is in a burst).
     pub fn will_spike(&self, unit: &UnitState) -> bool {
         if unit.refractory_us > 0 {

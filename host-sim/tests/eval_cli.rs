@@ -1,6 +1,6 @@
 //! `host-sim synth` writes the documented files; `host-sim eval` prints the figures.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
@@ -49,6 +49,18 @@ fn estimate_from_gt(gt: &Path, out: &Path, column: &str, scale: f64) {
     std::fs::write(out, s).unwrap();
 }
 
+/// A rendered sequence in a temporary directory (kept while the first value lives), and an
+/// estimate of its ground truth's yaw rate times `scale` as column `column`: the directory, the
+/// sequence's path and the estimate's.
+fn sequence_with_estimate(column: &str, scale: f64) -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("seq");
+    synth(&seq);
+    let yaw = dir.path().join("yaw.csv");
+    estimate_from_gt(&seq.join("gt.csv"), &yaw, column, scale);
+    (dir, seq, yaw)
+}
+
 #[test]
 fn synth_writes_the_documented_files() {
     let dir = tempfile::tempdir().unwrap();
@@ -91,11 +103,7 @@ fn synth_writes_the_documented_files() {
 
 #[test]
 fn eval_prints_the_figures_and_plots() {
-    let dir = tempfile::tempdir().unwrap();
-    let seq = dir.path().join("seq");
-    synth(&seq);
-    let yaw = dir.path().join("yaw.csv");
-    estimate_from_gt(&seq.join("gt.csv"), &yaw, "yaw_rate_rad_s", 1.1);
+    let (dir, seq, yaw) = sequence_with_estimate("yaw_rate_rad_s", 1.1);
     let png = dir.path().join("eval.png");
     let text = run_ok(
         host_sim()
@@ -154,11 +162,7 @@ fn eval_prints_the_figures_and_plots() {
 fn without_ground_truth_the_gyro_is_the_reference() {
     // A recording with an IMU and no ground truth (a real camera's): the estimate against the
     // gyro, which reads the truth with a 0.01 rad/s bias.
-    let dir = tempfile::tempdir().unwrap();
-    let seq = dir.path().join("seq");
-    synth(&seq);
-    let yaw = dir.path().join("yaw.csv");
-    estimate_from_gt(&seq.join("gt.csv"), &yaw, "yaw_rate_rad_s", 1.0);
+    let (_dir, seq, yaw) = sequence_with_estimate("yaw_rate_rad_s", 1.0);
     let json = run_ok(
         host_sim()
             .args(["eval", "--json", "--yaw"])
@@ -193,11 +197,7 @@ fn without_ground_truth_the_gyro_is_the_reference() {
 
 #[test]
 fn eval_of_a_normalized_readout() {
-    let dir = tempfile::tempdir().unwrap();
-    let seq = dir.path().join("seq");
-    synth(&seq);
-    let yaw = dir.path().join("yaw.csv");
-    estimate_from_gt(&seq.join("gt.csv"), &yaw, "yaw_norm", 0.3);
+    let (_dir, seq, yaw) = sequence_with_estimate("yaw_norm", 0.3);
     let text = run_ok(
         host_sim()
             .args(["eval", "--yaw"])

@@ -84,64 +84,49 @@ mod tests {
         (-dt_ms / (20.0 * core::f64::consts::LN_2) * 65536.0) as i32
     }
 
-    fn around(vertical: [Option<f64>; 2], own_before_ms: Option<f64>) -> Around {
-        Around {
+    /// Whether a crossing of `dt_h_ms` over `s_h` px (the vertical stride 2) is dropped, with
+    /// onsets `vertical` ms ago above and below and the own previous one `own_before_ms` ago.
+    fn drops(
+        dt_h_ms: f64,
+        s_h: u16,
+        vertical: [Option<f64>; 2],
+        own_before_ms: Option<f64>,
+    ) -> bool {
+        let around = Around {
             vertical: vertical.map(|v| v.map(ago)),
             own_before: own_before_ms.map(ago),
             reach: ago(54.0),
-        }
+        };
+        moves_vertically(ago(dt_h_ms), [s_h, 2], &around)
     }
 
     #[test]
     fn an_edge_from_above_that_crossed_slowly_vertically_is_dropped() {
         // dt_h = 3 ms over 2 px, the pixel above 10 ms before: g_y / g_x = 3.3.
-        let a = around([Some(10.0), None], None);
-        assert!(moves_vertically(ago(3.0), [2, 2], &a));
+        assert!(drops(3.0, 2, [Some(10.0), None], None));
         // Over one pixel the same dt_h is twice as slow per pixel: g_y / g_x = 1.7.
-        assert!(!moves_vertically(ago(3.0), [1, 2], &a));
+        assert!(!drops(3.0, 1, [Some(10.0), None], None));
         // Below it: g_y / g_x = 1.7 at 6 ms.
-        assert!(!moves_vertically(ago(6.0), [2, 2], &a));
+        assert!(!drops(6.0, 2, [Some(10.0), None], None));
     }
 
     #[test]
     fn near_vertical_edges_and_ambiguous_neighbours_are_kept() {
         // The pixel above fired just before: g_y small.
-        assert!(!moves_vertically(
-            ago(3.0),
-            [2, 2],
-            &around([Some(0.5), None], None)
-        ));
+        assert!(!drops(3.0, 2, [Some(0.5), None], None));
         // Both neighbours about as long ago: an older edge, or g_y ≈ 0.
-        let both = around([Some(10.0), Some(12.0)], None);
-        assert!(!moves_vertically(ago(3.0), [2, 2], &both));
+        assert!(!drops(3.0, 2, [Some(10.0), Some(12.0)], None));
         // One clearly later than the other (trace ratio above 2: 13.9 ms apart).
-        let one = around([Some(10.0), Some(25.0)], None);
-        assert!(moves_vertically(ago(3.0), [2, 2], &one));
-        assert!(!moves_vertically(
-            ago(3.0),
-            [2, 2],
-            &around([None, None], None)
-        ));
+        assert!(drops(3.0, 2, [Some(10.0), Some(25.0)], None));
+        assert!(!drops(3.0, 2, [None, None], None));
     }
 
     #[test]
     fn a_neighbour_onset_out_of_reach_or_older_than_the_own_one_is_kept() {
-        assert!(!moves_vertically(
-            ago(3.0),
-            [2, 2],
-            &around([Some(60.0), None], None)
-        ));
+        assert!(!drops(3.0, 2, [Some(60.0), None], None));
         // The pixel's own previous onset 40 ms ago: the neighbour's 10 ms ago is not 42 ms
         // later than it.
-        assert!(!moves_vertically(
-            ago(3.0),
-            [2, 2],
-            &around([Some(10.0), None], Some(40.0))
-        ));
-        assert!(moves_vertically(
-            ago(3.0),
-            [2, 2],
-            &around([Some(10.0), None], Some(60.0))
-        ));
+        assert!(!drops(3.0, 2, [Some(10.0), None], Some(40.0)));
+        assert!(drops(3.0, 2, [Some(10.0), None], Some(60.0)));
     }
 }

@@ -57,7 +57,7 @@ use fixed::types::{I16F16, U16F16};
 
 use super::aperture::{self, Around};
 use super::field::{Field, FieldSettings, Population};
-use super::shared::{field_over, min_burst_drive, OutputGate, RateDecoder};
+use super::shared::{field_over, OutputGate, RateDecoder};
 use super::stride_choice::{Stride, StrideChoice};
 use super::Readout;
 use crate::layout::Layout;
@@ -217,6 +217,7 @@ impl Calibrated {
             field.choose_by_decode_rate();
         }
         let near_units = has_near(layout);
+        let min_drive = kernel.min_burst_drive();
         let log2_tau = [
             log2_q16(u64::from(p.tau_fac_us), 0),
             log2_q16(u64::from(TAU_SLOW_US), 0),
@@ -227,10 +228,10 @@ impl Calibrated {
             log2_tau,
             rates: RateDecoder::new(layout, cal.focal_px, cal.cx),
             w_trg: p.w_trg.to_bits(),
-            min_drive: min_burst_drive(kernel),
+            min_drive,
             slow_scene_own: Trace::saturating_from_num(p.w_fac).saturating_add(SLOW_SCENE_MARGIN),
             w_fac: Trace::saturating_from_num(p.w_fac),
-            log2_min_drive: log2_q16(u64::from(min_burst_drive(kernel).to_bits()), 0),
+            log2_min_drive: log2_q16(u64::from(min_drive.to_bits()), 0),
             stride_px: layout.stride(),
             gate: OutputGate::new(cal.period_us, WARMUP_US),
             stride: StrideChoice::new(near_units),
@@ -259,25 +260,23 @@ impl Calibrated {
 
     /// [`Calibrated::decode_dt`] with the pixel's [`Calibrated::ceiling`] known.
     fn decode_dt_below(&self, drive: Trace, ceiling: u64, log2_tau: i32) -> Option<i32> {
-        RateDecoder::log2_dt_s(self.log2_to_ceiling(drive, ceiling)?, log2_tau)
+        let l2c = (ceiling > 0).then(|| log2_q16(ceiling, 0))?;
+        RateDecoder::log2_dt_s(self.log2_to_ceiling(drive, l2c)?, log2_tau)
     }
 
-    /// `log2(drive / ceiling)` (Q16, below 0 for a drive that codes a crossing), if the drive
-    /// makes a burst.
-    fn log2_to_ceiling(&self, drive: Trace, ceiling: u64) -> Option<i32> {
-        if drive < self.min_drive || ceiling == 0 {
-            return None;
-        }
-        Some(log2_q16(u64::from(drive.to_bits()), 0).saturating_sub(log2_q16(ceiling, 0)))
+    /// `log2(drive / ceiling)` (Q16, below 0 for a drive that codes a crossing) from the
+    /// ceiling's `log2` `l2c`, if the drive makes a burst.
+    fn log2_to_ceiling(&self, drive: Trace, l2c: i32) -> Option<i32> {
+        (drive >= self.min_drive)
+            .then(|| log2_q16(u64::from(drive.to_bits()), 0).saturating_sub(l2c))
     }
 
-    /// Whether a decode of the paper's units (`log2` ratio `l2_h` to the `ceiling`, at
-    /// `stride`) times an edge that moves mostly vertically ([`aperture`]).
-    fn moves_vertically(&self, t: &Trigger, l2_h: i32, stride: Stride, ceiling: u64) -> bool {
-        if t.vertical_drive == [Trace::ZERO; 2] || ceiling == 0 {
+    /// Whether a decode of the paper's units (`log2` ratio `l2_h` to the ceiling, whose `log2`
+    /// is `l2c`, at `stride`) times an edge that moves mostly vertically ([`aperture`]).
+    fn moves_vertically(&self, t: &Trigger, l2_h: i32, stride: Stride, l2c: i32) -> bool {
+        if t.vertical_drive == [Trace::ZERO; 2] {
             return false;
         }
-        let l2c = log2_q16(ceiling, 0);
         let ratio = |bits: u64| (bits > 0).then(|| log2_q16(bits, 0).saturating_sub(l2c));
         let around = Around {
             vertical: t.vertical_drive.map(|d| ratio(u64::from(d.to_bits()))),
@@ -370,14 +369,16 @@ impl NetSink for Calibrated {
             return;
         }
         let [tau_fast, _] = self.log2_tau;
+        let l2c = (ceiling > 0).then(|| log2_q16(ceiling, 0));
         let fast = fast.and_then(|(drive, positive)| {
-            let l = self.log2_to_ceiling(drive, ceiling)?;
-            Some((l, RateDecoder::log2_dt_s(l, tau_fast)?, positive))
+            let l2c = l2c?;
+            let l = self.log2_to_ceiling(drive, l2c)?;
+            Some((l, l2c, RateDecoder::log2_dt_s(l, tau_fast)?, positive))
         });
         let fast = match fast {
             // An edge that moves mostly vertically says little about the rotation.
-            Some((l, _, _)) if self.moves_vertically(t, l, stride, ceiling) => return,
-            f => f.map(|(_, dt, positive)| (dt, positive)),
+            Some((l, l2c, _, _)) if self.moves_vertically(t, l, stride, l2c) => return,
+            f => f.map(|(_, _, dt, positive)| (dt, positive)),
         };
         let (dt, positive, pop) = match fast {
             Some((dt, positive)) => (dt, positive, Population::Fast),

@@ -9,7 +9,7 @@ use crate::flags;
 use crate::layout::Layout;
 use crate::log2::log2_q16;
 use crate::params::Trace;
-use crate::unit::{Kernel, UnitState};
+use crate::unit::Kernel;
 
 /// `log2(1e6)` in Q16.16 (µs to s).
 pub const LOG2_1E6: i32 = 1_306_235;
@@ -118,31 +118,13 @@ impl Confirmation {
     }
 }
 
-/// Smallest TRG drive that makes a unit at rest burst (`q·tau/e >= 1`).
-pub fn min_burst_drive(kernel: &Kernel) -> Trace {
-    let (mut lo, mut hi) = (0u32, crate::params::TRACE_MAX.to_bits());
-    while lo < hi {
-        let mid = lo + (hi - lo) / 2;
-        let u = UnitState {
-            i_trg: Trace::from_bits(mid),
-            ..UnitState::default()
-        };
-        if kernel.may_spike(&u) {
-            hi = mid;
-        } else {
-            lo = mid + 1;
-        }
-    }
-    Trace::from_bits(lo)
-}
-
 /// `log2` of the window (s) of a unit with FAC time constant `2^log2_tau` µs: the longest
 /// crossing it times, where the drive of an edge on a pixel with one onset falls to the smallest
 /// that bursts (`tau_F ln(w_T w_F / min_drive)`: ~54 ms for the paper's units).
 pub fn window_log2_s(kernel: &Kernel, log2_tau: i32) -> i32 {
     let w_trg = kernel.params().w_trg;
     let w_fac = kernel.fac_input(Trace::ZERO);
-    let l = log2_q16(u64::from(min_burst_drive(kernel).to_bits()), 27)
+    let l = log2_q16(u64::from(kernel.min_burst_drive().to_bits()), 27)
         .saturating_sub(log2_q16(u64::from(w_trg.to_bits()), 16))
         .saturating_sub(log2_q16(u64::from(w_fac.to_bits()), 27));
     RateDecoder::log2_dt_s(l, log2_tau).unwrap_or(i32::MIN)

@@ -134,8 +134,7 @@ use super::aperture::{self, Around};
 use super::calibrated::{has_near, Calibration, SLOW_TAU_A_US};
 use super::field::{Field, Population};
 use super::shared::{
-    field_over, min_burst_drive, window_log2_s, OutputGate, RateDecoder, DOMINANCE_LOG2, LOG2_1E6,
-    WARMUP_US,
+    field_over, window_log2_s, OutputGate, RateDecoder, DOMINANCE_LOG2, LOG2_1E6, WARMUP_US,
 };
 use super::stride_choice::{Stride, StrideChoice};
 use super::{Readout, Side};
@@ -443,7 +442,7 @@ impl BurstDecoder {
                 .saturating_sub(log2_q16(u64::from(p.theta.to_bits()), 16))
                 .saturating_sub(LOG2_1E6),
             l2_tref: 0,
-            l2_min_drive: log2_q16(u64::from(min_burst_drive(kernel).to_bits()), 27),
+            l2_min_drive: log2_q16(u64::from(kernel.min_burst_drive().to_bits()), 27),
         };
         d.l2_tref = d.l2_time(p.t_ref_us);
         d
@@ -1024,9 +1023,10 @@ impl<'a> Decoding<'a> {
             return true;
         }
         // dt = -tau_F ln(D / (w_T own)), then the rotation at the pixel's column.
+        let log2_own = log2_q16(u64::from(c.own().to_bits()), 27);
         let l = l2d
             .saturating_sub(target.log2_w_trg)
-            .saturating_sub(log2_q16(u64::from(c.own().to_bits()), 27));
+            .saturating_sub(log2_own);
         let Some(l2dt) = RateDecoder::log2_dt_s(l, self.log2_tau_fac) else {
             return true;
         };
@@ -1080,7 +1080,7 @@ impl<'a> Decoding<'a> {
                 let Some(l2dt) = read else {
                     return true;
                 };
-                if self.moves_vertically(target, (x, y), t_trg, c.own(), l, other) {
+                if self.moves_vertically(target, (x, y), t_trg, (c.own(), log2_own), l, other) {
                     return true;
                 }
                 l2dt
@@ -1097,21 +1097,20 @@ impl<'a> Decoding<'a> {
     }
 
     /// Whether a decode `l` (`log2(D / (w_T own))`, Q16) of the onset at `t_trg` of pixel
-    /// `(x, y)`, whose own trace after it is `own`, times an edge that moves mostly vertically
-    /// ([`aperture`]), as the onsets decoded at the pixels the layout's stride above and below
-    /// by this network or `other` say (their traces rebuilt as the pixel's own; a neighbour
+    /// `(x, y)`, whose own trace after it is `own` (and its `log2`, Q16), times an edge that
+    /// moves mostly vertically ([`aperture`]), as the onsets decoded at the pixels the layout's
+    /// stride above and below by this network or `other` say (their traces rebuilt as the pixel's own; a neighbour
     /// whose last decoded onset came after `t_trg` says nothing).
     fn moves_vertically<L: Layout>(
         &self,
         target: &Target<L>,
         (x, y): (u16, u16),
         t_trg: u32,
-        own: Trace,
+        (own, log2_own): (Trace, i32),
         l: i32,
         other: Option<&[SpikeCell]>,
     ) -> bool {
         let s = target.layout.stride();
-        let log2_own = log2_q16(u64::from(own.to_bits()), 27);
         let ratio = |t: Trace| {
             (t.to_bits() > 0).then(|| log2_q16(u64::from(t.to_bits()), 27).saturating_sub(log2_own))
         };
