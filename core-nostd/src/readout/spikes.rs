@@ -83,9 +83,10 @@
 //! As the calibrated readout, a decode of the paper's units whose edge moves mostly vertically
 //! is not read ([`aperture`]); what a vertical neighbour saw is the last onset decoded at that
 //! pixel, by either network of the paper's units, at or before the decode's TRG event (a pixel
-//! whose units did not burst says nothing: on a camera that only wobbles 22 % of the decodes
-//! find no onset at either neighbour, against 7 % of the calibrated readout's, which reads
-//! their traces).
+//! whose units did not burst says nothing: on a camera that only wobbles, with the onsets of
+//! its own network alone, 22 % of the decodes found no onset at either neighbour, against 7 %
+//! of the calibrated readout's, which reads their traces; counted once with a temporary
+//! counter).
 //!
 //! # Which spikes it reads
 //! A decode needs the first interval after a TRG event (from rest: its first two spikes; in
