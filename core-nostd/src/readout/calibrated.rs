@@ -369,16 +369,18 @@ impl NetSink for Calibrated {
             return;
         }
         let [tau_fast, _] = self.log2_tau;
-        let l2c = (ceiling > 0).then(|| log2_q16(ceiling, 0));
-        let fast = fast.and_then(|(drive, positive)| {
-            let l2c = l2c?;
-            let l = self.log2_to_ceiling(drive, l2c)?;
-            Some((l, l2c, RateDecoder::log2_dt_s(l, tau_fast)?, positive))
-        });
         let fast = match fast {
-            // An edge that moves mostly vertically says little about the rotation.
-            Some((l, l2c, _, _)) if self.moves_vertically(t, l, stride, l2c) => return,
-            f => f.map(|(_, _, dt, positive)| (dt, positive)),
+            // A burst lies below its ceiling (so the ceiling is above 0) and makes a burst.
+            Some((drive, positive)) => {
+                let l2c = log2_q16(ceiling, 0);
+                let l = log2_q16(u64::from(drive.to_bits()), 0).saturating_sub(l2c);
+                match RateDecoder::log2_dt_s(l, tau_fast) {
+                    // An edge that moves mostly vertically says little about the rotation.
+                    Some(_) if self.moves_vertically(t, l, stride, l2c) => return,
+                    dt => dt.map(|dt| (dt, positive)),
+                }
+            }
+            None => None,
         };
         let (dt, positive, pop) = match fast {
             Some((dt, positive)) => (dt, positive, Population::Fast),
