@@ -713,6 +713,30 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let dx = f64::from(x) - self.cx;
         let g = self.focal + dx * dx / self.focal;
         let w = stride / (dt_s * g);
+        // Within an octave above the paper's units' floor (a crossing between half their reach
+        // and their reach), of an onset the slow units decode too: beyond the slow units' floor.
+        let reach = self.p.tau_fac * (self.p.w_trg * self.p.w_fac / min_drive).ln() * 1e-6;
+        if pop == 0 && dt_s >= reach / 2.0 {
+            let (a, b) = if self.stride.near {
+                (near_lr, near_rl)
+            } else {
+                (lr, rl)
+            };
+            let slow = if !slow_onset || own_slow >= 8.0 || own >= self.p.w_fac + 0.1 {
+                None
+            } else {
+                decode(a.1, b.1, own_slow, self.tau_slow)
+            };
+            if let (Some((_, slow_positive)), [fast_field, slow_field]) = (slow, &mut self.fields) {
+                slow_field.add_beyond_floor(
+                    x,
+                    y,
+                    slow_positive,
+                    stride / (reach * g),
+                    fast_field.tau_a,
+                );
+            }
+        }
         if let Some(field) = self.fields.get_mut(pop) {
             field.add(x, y, if positive { w } else { -w });
             self.samples += 1;
@@ -919,6 +943,8 @@ struct SpikeTarget<'t, L: crate::layout::Layout> {
     stride: &'t mut OracleStrideChoice,
     near_floor_s: f64,
     samples: &'t mut u64,
+    /// The paper's units' field's histogram time constant (µs).
+    fast_tau: f64,
     /// For the layout's paper's units beside near units: the near units' decoder state.
     near: Option<NearView<'t>>,
     /// The other population of the paper's units' decoded onsets (the near units' for the
@@ -1129,6 +1155,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         };
         // The near units' decodes go to the paper's units' field.
         let which = usize::from(pop.fast_reach_s.is_some());
+        let fast_tau = self.fields.first().map_or(0.0, |f| f.tau_a);
         let Some(field) = self.fields.get_mut(which) else {
             return;
         };
@@ -1142,6 +1169,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             stride: &mut self.stride,
             near_floor_s: self.near_floor_s,
             samples: &mut self.samples,
+            fast_tau,
             near,
             other_onsets,
         };
@@ -1472,7 +1500,16 @@ impl SpikePopulation {
             Some(reach) => {
                 let reach = if near_chosen { stride * reach } else { reach };
                 if busy || dt_s <= reach {
-                    // The paper's units time this edge.
+                    // The paper's units time this edge; within an octave of their reach it
+                    // lies beyond the slow units' floor.
+                    if !busy && dt_s > reach / 2.0 {
+                        let dx = f64::from(x) - target.cx;
+                        let g = target.focal + dx * dx / target.focal;
+                        let floor = f64::from(self.stride) / (reach * g);
+                        target
+                            .field
+                            .add_beyond_floor(x, y, u == 1, floor, target.fast_tau);
+                    }
                     return true;
                 }
                 dt_s
@@ -1631,6 +1668,12 @@ pub struct OracleField {
     /// The readout has answered one direction for a while (see
     /// [`crate::readout::field::Field::set_direction_established`]).
     established: bool,
+    /// Per region: the paper's units' decodes beyond this (slow units') field's floor per
+    /// sign, leaky over `beyond_tau`, and the floor's bin (see
+    /// [`crate::readout::field::Field::add_beyond_floor`]).
+    beyond: std::vec::Vec<([f64; 2], usize)>,
+    /// The paper's units' histogram time constant (µs) `beyond` decays with (0: none yet).
+    beyond_tau: f64,
 }
 
 impl OracleField {
@@ -1672,6 +1715,8 @@ impl OracleField {
             recent: 0.0,
             short: 0.0,
             established: false,
+            beyond: std::vec![([0.0; 2], 0); 4 * COLS * ROWS],
+            beyond_tau: 0.0,
         };
         let mut seen = [[false; COLS]; 2];
         let mut above_bands = 0u8;
@@ -1729,11 +1774,34 @@ impl OracleField {
         }
     }
 
+    /// A decode of the paper's units (histogram time constant `fast_tau` µs) within an octave
+    /// above their floor `floor` (rad/s) at pixel `(x, y)`, of an onset this field's (slow)
+    /// units decode too with sign `positive`.
+    pub fn add_beyond_floor(&mut self, x: u16, y: u16, positive: bool, floor: f64, fast_tau: f64) {
+        let (lo, hi) = (0.01f64.ln(), 20.0f64.ln());
+        let bin = (((floor.ln() - lo) / ((hi - lo) / ORACLE_BINS as f64)).floor())
+            .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize;
+        self.beyond_tau = fast_tau;
+        let idx = self.region_index(x, y);
+        if let Some((m, b)) = self.beyond.get_mut(idx) {
+            *b = bin;
+            if let Some(m) = m.get_mut(usize::from(positive)) {
+                *m += 1.0;
+            }
+        }
+    }
+
     /// One output period passes.
     pub fn age(&mut self) {
         let keep = (-self.period / self.tau_a).exp();
         for b in self.hist.iter_mut().flatten().flatten() {
             *b *= keep;
+        }
+        if self.beyond_tau > 0.0 {
+            let keep = (-self.period / self.beyond_tau).exp();
+            for (m, _) in self.beyond.iter_mut() {
+                *m = m.map(|v| v * keep);
+            }
         }
         let short_keep = (-self.period / f64::from(crate::readout::field::SHORT_TAU_US)).exp();
         self.short = self.short * short_keep + self.recent;
@@ -1888,7 +1956,24 @@ impl OracleField {
 
     /// `(median, variance of the median)` in region `i`.
     fn region_value(&self, i: usize) -> Option<(f64, f64)> {
-        let [neg, pos] = self.hist.get(i)?;
+        let [mut neg, mut pos] = *self.hist.get(i)?;
+        // What the slow units' histograms leave out beyond the paper's units' floor, once the
+        // direction is established: at most their own decodes in the octave below the floor.
+        if let (true, Some(&([bn, bp], bin))) = (
+            self.established && self.beyond_tau > 0.0,
+            self.beyond.get(i),
+        ) {
+            let octave = crate::readout::field::OCTAVE_BINS;
+            for (h, m) in [(&mut neg, bn), (&mut pos, bp)] {
+                let below: f64 = h
+                    .get(bin.saturating_sub(octave)..bin)
+                    .map_or(0.0, |b| b.iter().sum());
+                if let Some(b) = h.get_mut(bin) {
+                    *b += (m * self.tau_a / self.beyond_tau).min(below);
+                }
+            }
+        }
+        let (neg, pos) = (&neg, &pos);
         let (n, p): (f64, f64) = (neg.iter().sum(), pos.iter().sum());
         let total = n + p;
         if total <= 0.0 || total < self.min_samples {

@@ -24,7 +24,10 @@
 //! unit otherwise) whose units time crossings up to ~270 ms. A trigger is decoded from the
 //! paper's units when they burst and from the slow units only when they do not, so slow units
 //! add the slow edges without weighing in where the fast ones see the edge (their longer memory
-//! blurs accelerations). Slow traces near saturation (own trace >= 8) are not decoded.
+//! blurs accelerations). Slow traces near saturation (own trace >= 8) are not decoded. A decode
+//! of the paper's units within an octave above their floor, of an onset the slow units decode
+//! too, is counted beyond the slow units' floor ([`Field::add_beyond_floor`]): the slow units'
+//! histograms end there.
 //!
 //! # Near units
 //! Each TRG event is also decoded as if its FAC pixel were one pixel away (the same units with
@@ -57,7 +60,7 @@ use fixed::types::{I16F16, U16F16};
 
 use super::aperture::{self, Around};
 use super::field::{Field, FieldSettings, Population};
-use super::shared::{field_over, OutputGate, RateDecoder};
+use super::shared::{field_over, window_log2_s, OutputGate, RateDecoder};
 use super::stride_choice::{Stride, StrideChoice};
 use super::Readout;
 use crate::layout::Layout;
@@ -188,6 +191,9 @@ pub struct Calibrated {
     w_fac: Trace,
     /// `log2` of [`Calibrated::min_drive`]'s bits (Q16).
     log2_min_drive: i32,
+    /// `log2` (Q16.16, s) of the longest crossing the paper's units time at a pixel with one
+    /// onset (own trace `w_F`): their reach, ~54 ms by default.
+    reach_log2_s: i32,
     /// The layout's stride (px).
     stride_px: u16,
     /// Warm-up and refresh of the output.
@@ -222,6 +228,7 @@ impl Calibrated {
             log2_q16(u64::from(p.tau_fac_us), 0),
             log2_q16(u64::from(TAU_SLOW_US), 0),
         ];
+        let [log2_tau_fast, _] = log2_tau;
         Self {
             cal,
             field,
@@ -232,6 +239,7 @@ impl Calibrated {
             slow_scene_own: Trace::saturating_from_num(p.w_fac).saturating_add(SLOW_SCENE_MARGIN),
             w_fac: Trace::saturating_from_num(p.w_fac),
             log2_min_drive: log2_q16(u64::from(min_drive.to_bits()), 0),
+            reach_log2_s: window_log2_s(kernel, log2_tau_fast),
             stride_px: layout.stride(),
             gate: OutputGate::new(cal.period_us, WARMUP_US),
             stride: StrideChoice::new(near_units),
@@ -296,6 +304,25 @@ impl Calibrated {
     fn fast_burst(&self, drive: [Trace; 2], ceiling: u64) -> Option<(Trace, bool)> {
         let (fast, positive) = stronger(drive);
         (fast >= self.min_drive && u64::from(fast.to_bits()) < ceiling).then_some((fast, positive))
+    }
+
+    /// A decode of the paper's units timing a crossing of `2^dt` s at `stride` (pixel `t`, in
+    /// `region` if known): when it lies within an octave above their floor (a crossing
+    /// between half their reach and their reach) and the slow units decode the onset too, the
+    /// field counts it beyond the slow units' floor ([`Field::add_beyond_floor`]).
+    fn count_beyond_floor(&mut self, t: &Trigger, dt: i32, stride: Stride, region: Option<usize>) {
+        if dt < self.reach_log2_s.saturating_sub(1 << 16) {
+            return;
+        }
+        let Some((_, positive)) = self.decode_slow(t) else {
+            return;
+        };
+        let floor = match stride {
+            Stride::Near => self.rates.near_rotation_rate(self.reach_log2_s, t.x),
+            Stride::Layout => self.rates.rotation_rate(self.reach_log2_s, t.x),
+        };
+        let region = region.unwrap_or_else(|| self.field.geometry().region(t.x, t.y));
+        self.field.add_beyond_floor(region, positive, floor);
     }
 
     /// The same for the slow units (`t.slow_drive`, of the chosen stride), where the pixel's
@@ -383,7 +410,10 @@ impl NetSink for Calibrated {
             None => None,
         };
         let (dt, positive, pop) = match fast {
-            Some((dt, positive)) => (dt, positive, Population::Fast),
+            Some((dt, positive)) => {
+                self.count_beyond_floor(t, dt, stride, region);
+                (dt, positive, Population::Fast)
+            }
             None => {
                 let Some((dt, positive)) = self.decode_slow(t) else {
                     return;

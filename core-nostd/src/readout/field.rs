@@ -87,6 +87,17 @@
 //!   to their histograms' (at most 1): their 100 ms histograms remember a turn that is slowing
 //!   down longer than it lasts. (Only a drop below 4/5 scales: the 20 ms rate's own scatter
 //!   would otherwise bias a steady slow turn low.)
+//! - A trigger goes to the slow units only where the paper's units do not burst, so the slow
+//!   units' histograms end at the paper's units' floor (the slowest rotation they time: 0.08
+//!   rad/s across one pixel at a DAVIS346's principal point), and a turn whose crossings
+//!   straddle it reads low from them (hover seed 1 at 0.066 rad/s: 0.82 of it, the paper's
+//!   units' decodes 1.49). The paper's units' decodes within an octave above their floor at
+//!   onsets the slow units decode too are counted per region and sign over the paper's units'
+//!   time constant ([`Field::add_beyond_floor`]); once the direction is established, the slow
+//!   units' median counts them at the floor, scaled to the slow units' time constant, and at
+//!   most as many as the slow units decode in the octave below it (a distribution that goes on
+//!   past the floor has about as much there; where the slow units' decodes thin out before it,
+//!   the paper's units' decodes near the floor are aliases or an onset's wake-ups).
 //! - A layout with no mirrored bands (such as two boxes placed at random) uses each band's side
 //!   alone, with no spread gate.
 //!
@@ -158,6 +169,10 @@ pub const LOG2_LO: i32 = -435_413;
 pub const LOG2_HI: i32 = 283_242;
 /// Bin width in Q16.16 log2 units.
 pub const BIN_W: i32 = (LOG2_HI - LOG2_LO) / BINS as i32;
+
+/// Whole histogram bins per octave of rate (5; an octave is 5.8 bins): how far below the paper's
+/// units' floor the slow units' decodes that bound [`Field::add_beyond_floor`]'s count reach.
+pub const OCTAVE_BINS: usize = (65_536 / BIN_W) as usize;
 
 /// Time constant of the recent decode rate (µs) that tells a stopped camera.
 pub const SHORT_TAU_US: u32 = 20_000;
@@ -435,6 +450,12 @@ pub struct Field {
     /// Sum of each population's bins per region and sign (kept with the bins, so that no
     /// output has to add them all up).
     mass: [[[u64; 2]; REGIONS]; 2],
+    /// Per region and sign: decodes of the paper's units within an octave above their floor at
+    /// onsets the slow units decode too (the sign of the slow units' decode), in the paper's
+    /// units' population's weight (halved with it). See [`Field::add_beyond_floor`].
+    beyond_floor: [[u64; 2]; REGIONS],
+    /// Per region: the histogram bin of the paper's units' floor (as last reported).
+    floor_bin: [u8; REGIONS],
     /// Decodes per population, leaky over [`SHORT_TAU_US`] (Q16 samples).
     short: [u32; 2],
     /// Per-period decay of `short` (Q1.31).
@@ -475,6 +496,8 @@ impl Field {
             tau_us,
             recent: [0; 2],
             mass: [[[0; 2]; REGIONS]; 2],
+            beyond_floor: [[0; 2]; REGIONS],
+            floor_bin: [0; REGIONS],
             short: [0; 2],
             short_keep_q31: keep(SHORT_TAU_US),
             coverage,
@@ -551,6 +574,28 @@ impl Field {
         }
     }
 
+    /// Counts a decode of the paper's units that lies within an octave above their floor
+    /// (`floor_log2_rate`, Q16.16: the slowest rotation they time at the pixel, at the stride
+    /// decoded) at an onset the slow units decode too, with the sign of the slow units' decode
+    /// (region `region`; ignored if out of range). The slow units' decodes go to their
+    /// histograms only where the paper's units do not burst, so those histograms end at the
+    /// floor; what lies beyond it is counted here, for the slow units' region values (see the
+    /// module documentation).
+    pub fn add_beyond_floor(&mut self, region: usize, positive: bool, floor_log2_rate: i32) {
+        let bin = (floor_log2_rate.saturating_sub(LOG2_LO) / BIN_W).clamp(0, BINS as i32 - 1);
+        if let Some(b) = self.floor_bin.get_mut(region) {
+            *b = bin as u8;
+        }
+        let w = self.weight.first().copied().unwrap_or(UNIT_WEIGHT);
+        if let Some(m) = self
+            .beyond_floor
+            .get_mut(region)
+            .and_then(|m| m.get_mut(usize::from(positive)))
+        {
+            *m += u64::from(w);
+        }
+    }
+
     /// Ends one output period: ages everything seen so far by one period.
     pub fn age(&mut self) {
         for (short, recent) in self.short.iter_mut().zip(self.recent.iter_mut()) {
@@ -559,12 +604,14 @@ impl Field {
                 .min(u64::from(u32::MAX)) as u32;
             *recent = 0;
         }
-        for (((weight, grow), hist), mass) in self
+        let mut shifts = [0u32; 2];
+        for ((((weight, grow), hist), mass), halved) in self
             .weight
             .iter_mut()
             .zip(self.grow_half_q31.iter())
             .zip(self.hist.iter_mut())
             .zip(self.mass.iter_mut())
+            .zip(shifts.iter_mut())
         {
             let mut w = (u64::from(*weight) * u64::from(*grow)) >> 30;
             // Halve as often as needed (more than once when the period exceeds tau ln 2).
@@ -585,14 +632,90 @@ impl Field {
                     }
                 }
             }
+            *halved = shift;
             *weight = w.clamp(1, u64::from(2 * UNIT_WEIGHT)) as u32;
+        }
+        // Counted in the paper's units' weight: halved with it.
+        let [fast_shift, _] = shifts;
+        if fast_shift > 0 {
+            for m in self.beyond_floor.iter_mut().flatten() {
+                *m = m.checked_shr(fast_shift).unwrap_or(0);
+            }
+        }
+    }
+
+    /// What a region's slow units' histograms (`[neg, pos]`) leave out beyond the paper's
+    /// units' floor, once the direction is established ([`Field::set_direction_established`]):
+    /// per sign the decodes of [`Field::add_beyond_floor`], as many as the slow units would
+    /// have decoded over their own time constant (`× tau_slow / tau_fast`), at most the slow
+    /// units' own decodes in the octave below the floor, all in the floor's bin. Nothing for
+    /// the paper's units, or before the direction is established (an onset's first decodes of
+    /// the paper's units time the pixels waking up, not edges).
+    ///
+    /// The cap: a distribution that goes on past the floor has about as much mass just above
+    /// it as just below; where the slow units' decodes thin out before the floor, the paper's
+    /// units' decodes near it are aliases or wake-ups, not the slow units' tail.
+    fn beyond_floor_mass(
+        &self,
+        pop: Population,
+        region: usize,
+        [neg, pos]: [&[u32; BINS]; 2],
+    ) -> BeyondFloor {
+        let none = BeyondFloor::default();
+        if pop != Population::Slow || !self.established {
+            return none;
+        }
+        let (Some(&[n, p]), Some(&bin)) =
+            (self.beyond_floor.get(region), self.floor_bin.get(region))
+        else {
+            return none;
+        };
+        if n == 0 && p == 0 {
+            return none;
+        }
+        let bin = usize::from(bin);
+        let [w_fast, w_slow] = self.weight.map(|w| u128::from(w.max(1)));
+        let [tau_fast, tau_slow] =
+            [Population::Fast, Population::Slow].map(|p| u128::from(self.tau_us(p)));
+        let below = |h: &[u32; BINS]| -> u64 {
+            h.get(bin.saturating_sub(OCTAVE_BINS)..bin)
+                .map_or(0, |b| b.iter().map(|&m| u64::from(m)).sum())
+        };
+        let scaled = |m: u64, h: &[u32; BINS]| -> u64 {
+            let m = (u128::from(m) * w_slow * tau_slow)
+                .checked_div(w_fast * tau_fast)
+                .unwrap_or(0);
+            u64::try_from(m).unwrap_or(u64::MAX).min(below(h))
+        };
+        BeyondFloor {
+            bin,
+            mass: [scaled(n, neg), scaled(p, pos)],
         }
     }
 
     /// One population's statistics in a region, or `None` with fewer than `min_samples`.
     fn population_value(&self, pop: Population, region: usize) -> Option<RegionStats> {
         let [neg, pos] = self.hist.get(pop as usize)?.get(region)?;
-        let masses = *self.mass.get(pop as usize)?.get(region)?;
+        let mut masses = *self.mass.get(pop as usize)?.get(region)?;
+        let beyond = self.beyond_floor_mass(pop, region, [neg, pos]);
+        // With a count beyond the floor, a copy of the histograms with it in the floor's bin
+        // (the walks below stay as they are for every other region).
+        let with_beyond;
+        let [neg, pos] = if beyond.is_empty() {
+            [neg, pos]
+        } else {
+            let mut h = [*neg, *pos];
+            for ((bins, m), extra) in h.iter_mut().zip(masses.iter_mut()).zip(beyond.mass) {
+                if let Some(b) = bins.get_mut(beyond.bin) {
+                    let before = *b;
+                    *b = b.saturating_add(u32::try_from(extra).unwrap_or(u32::MAX));
+                    *m += u64::from(*b - before);
+                }
+            }
+            with_beyond = h;
+            let [n, p] = &with_beyond;
+            [n, p]
+        };
         let total: u64 = masses.iter().sum();
         let weight = u64::from(
             self.weight
@@ -971,6 +1094,23 @@ fn bin_rate_q16(i: usize, need: u64, m: u64, up: bool) -> i64 {
     i64::from(exp2_q16(l2.clamp(i64::from(i32::MIN), 0x7FFF_FFFF) as i32))
 }
 
+/// Mass a region's histograms leave out beyond the paper's units' floor (`mass`, per sign
+/// `[neg, pos]`, in the histograms' units), to be counted in bin `bin`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct BeyondFloor {
+    bin: usize,
+    mass: [u64; 2],
+}
+
+impl BeyondFloor {
+    /// Whether it adds nothing (compared word by word: an array comparison is a `memcmp` call).
+    #[inline]
+    fn is_empty(&self) -> bool {
+        let [n, p] = self.mass;
+        n | p == 0
+    }
+}
+
 /// The median rate of a region's majority sign (Q16 rad/s, signed; histograms `[neg, pos]` and
 /// their masses `[n, p]`), when at most a quarter of its decodes ([`SETTLED_MINORITY_LOG2`])
 /// take the other sign and it lies within half of the region's signed median `signed` (same
@@ -1274,6 +1414,81 @@ mod tests {
             FieldEstimate::Rotation(v) => Some(f64::from(v) / 65536.0),
             FieldEstimate::NoEvidence => None,
         }
+    }
+
+    /// Feeds 400 ms of a slow turn to the right seen by the slow units only: in every region,
+    /// per period, one slow decode at each rate of `slow` (mrad/s) and `beyond` decodes of the
+    /// paper's units within an octave above their floor `floor` (mrad/s); returns the estimate
+    /// (rad/s).
+    fn slow_turn(established: bool, slow: &[u64], beyond: usize, floor: u64) -> f64 {
+        let mut f = field();
+        f.set_direction_established(established);
+        for _ in 0..400 {
+            for side in 0..2 {
+                for band in 0..COL_BANDS {
+                    for row in 0..ROW_BANDS {
+                        for up in [false, true] {
+                            let (x, y) = pixel(side, band, up, row);
+                            let region = f.geometry().region(x, y);
+                            for &rate in slow {
+                                f.add(Population::Slow, x, y, log2_rate(rate), true);
+                            }
+                            for _ in 0..beyond {
+                                f.add_beyond_floor(region, true, log2_rate(floor));
+                            }
+                        }
+                    }
+                }
+            }
+            f.age();
+        }
+        rad_s(f.estimate()).expect("a rotation")
+    }
+
+    #[test]
+    fn the_slow_units_read_past_the_paper_units_floor_once_the_direction_is_established() {
+        // A turn whose crossings straddle the paper's units' floor (80 mrad/s): the slow units
+        // decode only the slower ones (their histograms end at the floor), the paper's units
+        // the rest.
+        let slow = [45, 50, 55, 60, 65, 70, 75];
+        let censored = slow_turn(true, &slow, 0, 80);
+        let starting = slow_turn(false, &slow, 4, 80);
+        let read = slow_turn(true, &slow, 4, 80);
+        assert!(
+            (censored - 0.06).abs() < 0.005,
+            "censored median {censored}"
+        );
+        // Before the direction is established (an onset) the count is not read.
+        assert!(
+            (starting - censored).abs() < 1e-4,
+            "{starting} vs {censored}"
+        );
+        // 4 per 1 ms period over the paper's units' 10 ms, 400 over the slow units' 100 ms,
+        // beside their 700: the median is 550 of 1 100 up, in the slow units' upper decodes.
+        assert!(
+            read > censored * 1.08 && read < 0.08,
+            "read {read}, censored {censored}"
+        );
+    }
+
+    #[test]
+    fn past_the_floor_counts_no_more_than_the_slow_units_decode_just_below_it() {
+        // The slow units' decodes lie more than an octave below the floor: the paper's units'
+        // decodes near it are not their tail (aliases, wake-ups), and change nothing.
+        let slow = [20, 22, 24, 26, 28, 30, 32];
+        let alone = slow_turn(true, &slow, 0, 80);
+        let with = slow_turn(true, &slow, 4, 80);
+        assert!((alone - with).abs() < 1e-4, "{alone} vs {with}");
+        // Two of seven in the octave below the floor, and ten times as many counted past it
+        // as the slow units decode: the count is cut to those two, and the median stays among
+        // the slow units' decodes (uncut, it would lie at the floor).
+        let slow = [30, 32, 34, 36, 38, 42, 70];
+        let alone = slow_turn(true, &slow, 0, 80);
+        let capped = slow_turn(true, &slow, 70, 80);
+        assert!(
+            capped > alone && capped < 0.04,
+            "capped {capped}, alone {alone}"
+        );
     }
 
     #[test]

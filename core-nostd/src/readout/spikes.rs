@@ -1048,7 +1048,16 @@ impl<'a> Decoding<'a> {
                 };
                 if c.busy() || l2dt <= reach {
                     // The paper's units time this edge: it crossed within their reach, or the
-                    // pixel had another onset shortly before.
+                    // pixel had another onset shortly before. Within an octave of their reach
+                    // it lies beyond the slow units' floor ([`Field::add_beyond_floor`]).
+                    if !c.busy() && l2dt > reach.saturating_sub(1 << 16) {
+                        let floor = match self.stride {
+                            Stride::Near => target.rates.near_rotation_rate(reach, x),
+                            Stride::Layout => target.rates.rotation_rate(reach, x),
+                        };
+                        let region = target.field.geometry().region(x, y);
+                        target.field.add_beyond_floor(region, positive, floor);
+                    }
                     return true;
                 }
                 l2dt
