@@ -228,6 +228,40 @@ fn hover_slow_yaw() {
     );
 }
 
+/// Hover seed 1 turns at 0.066 rad/s from 0.85 to 2.3 s, just below the paper's units' floor
+/// across one pixel (0.08 rad/s at the principal point): the slow units time the slower half
+/// of its crossings, the paper's units the rest. Counting the paper's decodes past the slow
+/// units' floor (`Field::add_beyond_floor`), the readout's answers over 1.2-2.2 s read 0.85-1.15
+/// of the turn on average (today 0.905; 0.80 from the slow units' histograms alone).
+#[test]
+fn a_hover_turn_straddling_the_paper_units_floor() {
+    let (rec, gt) = render(Regime::Hover, 1, 4.0, |_| {});
+    let samples = run_pipeline(&RunOptions::default(), &rec)
+        .expect("run")
+        .samples;
+    let within = |t: f64| (1.2..=2.2).contains(&t);
+    let answered: Vec<f64> = samples
+        .iter()
+        .filter(|s| within(s.0) && s.2 & NO_EVIDENCE == 0)
+        .map(|s| s.1)
+        .collect();
+    let truth: Vec<f64> = gt
+        .iter()
+        .filter(|g| within(g.t_s))
+        .map(|g| g.w[1])
+        .collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let gain = mean(&answered) / mean(&truth);
+    eprintln!(
+        "hover seed 1, 1.2-2.2 s: truth {:.4} rad/s, answers {:.4} ({} samples): {gain:.3}",
+        mean(&truth),
+        mean(&answered),
+        answered.len()
+    );
+    assert!(answered.len() > 900, "{} answers", answered.len());
+    assert!((0.85..=1.15).contains(&gain), "gain {gain:.3}");
+}
+
 /// Slow constant turns over the skyline (sharp edges; 2 s, seed 5): once settled (from 1 s
 /// on), the calibrated readout's answers read 0.8-1.2 of the turn on average (today 0.89 /
 /// 0.93 of 0.05 / 0.07 rad/s). The slow units time these, the near ones where onsets mark
