@@ -66,6 +66,18 @@ pub struct OracleUnit {
 }
 
 impl OracleParams {
+    /// The smallest drive that makes a burst from rest (`q tau / e >= 1`, `q = g I / theta` per
+    /// µs).
+    fn min_drive(&self) -> f64 {
+        core::f64::consts::E * self.theta / (self.gain_per_us * self.tau_trg)
+    }
+
+    /// The longest crossing (s) these units time at a pixel with one onset (own trace `w_F`):
+    /// where `w_T w_F e^(-dt/tau_F)` falls to [`OracleParams::min_drive`].
+    fn reach_s(&self) -> f64 {
+        self.tau_fac * (self.w_trg * self.w_fac / self.min_drive()).ln() * 1e-6
+    }
+
     /// `u(s)` and `u'(s)` for the closed-form evolution from `(u0, i0)`.
     fn membrane(&self, u0: f64, i0: f64, s: f64) -> (f64, f64) {
         let g = self.gain_per_us;
@@ -537,7 +549,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let n = layout.cell_count();
         let slow_tau = tau_a_us.max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
         let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
-        let fields = [field(tau_a_us), field(slow_tau)];
+        let fields = [field(tau_a_us), field(slow_tau).beyond_floor_over(tau_a_us)];
         let twins = crate::readout::calibrated::has_twins(&layout);
         let stride = OracleStrideChoice::new(crate::readout::calibrated::has_near(&layout));
         Self {
@@ -641,8 +653,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         if mask == 0 {
             return;
         }
-        // A burst from rest needs q tau / e >= 1 with q = g I / theta per µs.
-        let min_drive = core::f64::consts::E * self.p.theta / (self.p.gain_per_us * self.p.tau_trg);
+        let min_drive = self.p.min_drive();
         let decode = |lr: f64, rl: f64, own: f64, tau: f64| -> Option<(f64, bool)> {
             let (drive, lose, positive) = if rl > lr {
                 (self.p.w_trg * rl, self.p.w_trg * lr, true)
@@ -658,16 +669,18 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             }
             Some((-tau * ratio.ln() * 1e-6, positive))
         };
+        // The slow units' decode, where the pixel's scene is slow.
+        let decode_slow = |lr: (f64, f64), rl: (f64, f64)| {
+            if !slow_onset || own_slow >= 8.0 || own >= self.p.w_fac + 0.1 {
+                None
+            } else {
+                decode(lr.1, rl.1, own_slow, self.tau_slow)
+            }
+        };
         let decode_stride = |lr: (f64, f64), rl: (f64, f64)| {
             decode(lr.0, rl.0, own, self.p.tau_fac)
                 .map(|d| (d, 0))
-                .or_else(|| {
-                    if !slow_onset || own_slow >= 8.0 || own >= self.p.w_fac + 0.1 {
-                        None
-                    } else {
-                        decode(lr.1, rl.1, own_slow, self.tau_slow).map(|d| (d, 1))
-                    }
-                })
+                .or_else(|| decode_slow(lr, rl).map(|d| (d, 1)))
         };
         let far = decode_stride(lr, rl);
         let near = decode_stride(near_lr, near_rl);
@@ -715,26 +728,15 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let w = stride / (dt_s * g);
         // Within an octave above the paper's units' floor (a crossing between half their reach
         // and their reach), of an onset the slow units decode too: beyond the slow units' floor.
-        let reach = self.p.tau_fac * (self.p.w_trg * self.p.w_fac / min_drive).ln() * 1e-6;
+        let reach = self.p.reach_s();
         if pop == 0 && dt_s >= reach / 2.0 {
-            let (a, b) = if self.stride.near {
-                (near_lr, near_rl)
+            let slow = if self.stride.near {
+                decode_slow(near_lr, near_rl)
             } else {
-                (lr, rl)
+                decode_slow(lr, rl)
             };
-            let slow = if !slow_onset || own_slow >= 8.0 || own >= self.p.w_fac + 0.1 {
-                None
-            } else {
-                decode(a.1, b.1, own_slow, self.tau_slow)
-            };
-            if let (Some((_, slow_positive)), [fast_field, slow_field]) = (slow, &mut self.fields) {
-                slow_field.add_beyond_floor(
-                    x,
-                    y,
-                    slow_positive,
-                    stride / (reach * g),
-                    fast_field.tau_a,
-                );
+            if let (Some((_, slow_positive)), Some(slow_field)) = (slow, self.fields.get_mut(1)) {
+                slow_field.add_beyond_floor(x, y, slow_positive, stride / (reach * g));
             }
         }
         if let Some(field) = self.fields.get_mut(pop) {
@@ -943,8 +945,6 @@ struct SpikeTarget<'t, L: crate::layout::Layout> {
     stride: &'t mut OracleStrideChoice,
     near_floor_s: f64,
     samples: &'t mut u64,
-    /// The paper's units' field's histogram time constant (µs).
-    fast_tau: f64,
     /// For the layout's paper's units beside near units: the near units' decoder state.
     near: Option<NearView<'t>>,
     /// The other population of the paper's units' decoded onsets (the near units' for the
@@ -1015,7 +1015,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         let n = layout.cell_count();
         let slow_tau = tau_a_us.max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
         let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
-        let fields = [field(tau_a_us), field(slow_tau)];
+        let fields = [field(tau_a_us), field(slow_tau).beyond_floor_over(tau_a_us)];
         let slow = OracleParams {
             tau_fac: f64::from(crate::params::TAU_SLOW_US),
             ..p
@@ -1024,10 +1024,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         let near = crate::readout::calibrated::has_near(&layout);
         let mut pops = std::vec![SpikePopulation::new(p, n, gap_us, stride), {
             let mut s = SpikePopulation::new(slow, n, gap_us, stride);
-            // Where the paper's units' drive from a lone edge falls to the smallest that
-            // makes a burst.
-            let min = core::f64::consts::E * p.theta / (p.gain_per_us * p.tau_trg);
-            s.fast_reach_s = Some(p.tau_fac * (p.w_trg * p.w_fac / min).ln() * 1e-6);
+            s.fast_reach_s = Some(p.reach_s());
             s
         }];
         if near {
@@ -1155,7 +1152,6 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         };
         // The near units' decodes go to the paper's units' field.
         let which = usize::from(pop.fast_reach_s.is_some());
-        let fast_tau = self.fields.first().map_or(0.0, |f| f.tau_a);
         let Some(field) = self.fields.get_mut(which) else {
             return;
         };
@@ -1169,7 +1165,6 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             stride: &mut self.stride,
             near_floor_s: self.near_floor_s,
             samples: &mut self.samples,
-            fast_tau,
             near,
             other_onsets,
         };
@@ -1491,6 +1486,8 @@ impl SpikePopulation {
         }
         let dt_s = -p.tau_fac * ratio.ln() * 1e-6;
         let (x, y) = target.layout.pixel(cell);
+        let dx = f64::from(x) - target.cx;
+        let g = target.focal + dx * dx / target.focal;
         let near_chosen = target.stride.near;
         // The layout's units take `stride` times as long as the near units over one pixel.
         let stride = f64::from(target.layout.stride());
@@ -1503,12 +1500,8 @@ impl SpikePopulation {
                     // The paper's units time this edge; within an octave of their reach it
                     // lies beyond the slow units' floor.
                     if !busy && dt_s > reach / 2.0 {
-                        let dx = f64::from(x) - target.cx;
-                        let g = target.focal + dx * dx / target.focal;
                         let floor = f64::from(self.stride) / (reach * g);
-                        target
-                            .field
-                            .add_beyond_floor(x, y, u == 1, floor, target.fast_tau);
+                        target.field.add_beyond_floor(x, y, u == 1, floor);
                     }
                     return true;
                 }
@@ -1539,8 +1532,6 @@ impl SpikePopulation {
                 dt_s
             }
         };
-        let dx = f64::from(x) - target.cx;
-        let g = target.focal + dx * dx / target.focal;
         let w = f64::from(self.stride) / (dt_s * g);
         target.field.add(x, y, if u == 1 { w } else { -w });
         *target.samples += 1;
@@ -1640,6 +1631,14 @@ fn sign_agreement(n: f64, p: f64) -> f64 {
     }
 }
 
+/// The histogram bin of a rate `|r|` (rad/s), as [`crate::readout::field`]'s: `ORACLE_BINS`
+/// equal steps of `ln |r|` from 0.01 to 20 rad/s, rates outside in the end bins.
+fn oracle_bin(rate: f64) -> usize {
+    let (lo, hi) = (0.01f64.ln(), 20.0f64.ln());
+    (((rate.ln() - lo) / ((hi - lo) / ORACLE_BINS as f64)).floor())
+        .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize
+}
+
 /// The field estimator of [`crate::readout::field`] in f64, one population: leaky signed
 /// histograms of `log2 |rate|` per region, decayed exactly each period; per region the median
 /// and its variance from the interquartile range; per column band and side the intercept at
@@ -1672,7 +1671,8 @@ pub struct OracleField {
     /// sign, leaky over `beyond_tau`, and the floor's bin (see
     /// [`crate::readout::field::Field::add_beyond_floor`]).
     beyond: std::vec::Vec<([f64; 2], usize)>,
-    /// The paper's units' histogram time constant (µs) `beyond` decays with (0: none yet).
+    /// The paper's units' histogram time constant (µs) `beyond` decays with (0: the paper's
+    /// units' own field, which counts none; see [`OracleField::beyond_floor_over`]).
     beyond_tau: f64,
 }
 
@@ -1759,9 +1759,7 @@ impl OracleField {
 
     /// One decoded rate (rad/s, signed) at pixel `(x, y)`.
     pub fn add(&mut self, x: u16, y: u16, w: f64) {
-        let (lo, hi) = (0.01f64.ln(), 20.0f64.ln());
-        let bin = (((w.abs().ln() - lo) / ((hi - lo) / ORACLE_BINS as f64)).floor())
-            .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize;
+        let bin = oracle_bin(w.abs());
         let idx = self.region_index(x, y);
         if let Some(bin) = self
             .hist
@@ -1774,17 +1772,19 @@ impl OracleField {
         }
     }
 
-    /// A decode of the paper's units (histogram time constant `fast_tau` µs) within an octave
-    /// above their floor `floor` (rad/s) at pixel `(x, y)`, of an onset this field's (slow)
-    /// units decode too with sign `positive`.
-    pub fn add_beyond_floor(&mut self, x: u16, y: u16, positive: bool, floor: f64, fast_tau: f64) {
-        let (lo, hi) = (0.01f64.ln(), 20.0f64.ln());
-        let bin = (((floor.ln() - lo) / ((hi - lo) / ORACLE_BINS as f64)).floor())
-            .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize;
-        self.beyond_tau = fast_tau;
+    /// This field (the slow units') counts the paper's units' decodes beyond its floor, leaky
+    /// over the paper's units' histogram time constant `fast_tau_us`.
+    fn beyond_floor_over(mut self, fast_tau_us: f64) -> Self {
+        self.beyond_tau = fast_tau_us;
+        self
+    }
+
+    /// A decode of the paper's units within an octave above their floor `floor` (rad/s) at
+    /// pixel `(x, y)`, of an onset this field's (slow) units decode too with sign `positive`.
+    pub fn add_beyond_floor(&mut self, x: u16, y: u16, positive: bool, floor: f64) {
         let idx = self.region_index(x, y);
         if let Some((m, b)) = self.beyond.get_mut(idx) {
-            *b = bin;
+            *b = oracle_bin(floor);
             if let Some(m) = m.get_mut(usize::from(positive)) {
                 *m += 1.0;
             }

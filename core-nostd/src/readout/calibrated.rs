@@ -317,10 +317,9 @@ impl Calibrated {
         let Some((_, positive)) = self.decode_slow(t) else {
             return;
         };
-        let floor = match stride {
-            Stride::Near => self.rates.near_rotation_rate(self.reach_log2_s, t.x),
-            Stride::Layout => self.rates.rotation_rate(self.reach_log2_s, t.x),
-        };
+        let floor = self
+            .rates
+            .rotation_rate_over(stride, self.reach_log2_s, t.x);
         let region = region.unwrap_or_else(|| self.field.geometry().region(t.x, t.y));
         self.field.add_beyond_floor(region, positive, floor);
     }
@@ -422,10 +421,7 @@ impl NetSink for Calibrated {
                 (dt, positive, Population::Slow)
             }
         };
-        let l2 = match stride {
-            Stride::Near => self.rates.near_rotation_rate(dt, t.x),
-            Stride::Layout => self.rates.rotation_rate(dt, t.x),
-        };
+        let l2 = self.rates.rotation_rate_over(stride, dt, t.x);
         let region = region.unwrap_or_else(|| self.field.geometry().region(t.x, t.y));
         self.field.add_in(pop, region, l2, positive);
         self.samples += 1;

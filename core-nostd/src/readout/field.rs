@@ -545,7 +545,7 @@ impl Field {
     /// of range).
     #[inline]
     pub fn add_in(&mut self, pop: Population, region: usize, log2_rate: i32, positive: bool) {
-        let bin = (log2_rate.saturating_sub(LOG2_LO) / BIN_W).clamp(0, BINS as i32 - 1) as usize;
+        let bin = bin_of(log2_rate);
         let w = self
             .weight
             .get(pop as usize)
@@ -582,9 +582,8 @@ impl Field {
     /// floor; what lies beyond it is counted here, for the slow units' region values (see the
     /// module documentation).
     pub fn add_beyond_floor(&mut self, region: usize, positive: bool, floor_log2_rate: i32) {
-        let bin = (floor_log2_rate.saturating_sub(LOG2_LO) / BIN_W).clamp(0, BINS as i32 - 1);
         if let Some(b) = self.floor_bin.get_mut(region) {
-            *b = bin as u8;
+            *b = bin_of(floor_log2_rate) as u8;
         }
         let w = self.weight.first().copied().unwrap_or(UNIT_WEIGHT);
         if let Some(m) = self
@@ -1092,6 +1091,13 @@ fn bin_rate_q16(i: usize, need: u64, m: u64, up: bool) -> i64 {
     let pos_q16 = ((i as i64) << 16) + frac_up;
     let l2 = i64::from(LOG2_LO) + ((pos_q16 * i64::from(BIN_W)) >> 16);
     i64::from(exp2_q16(l2.clamp(i64::from(i32::MIN), 0x7FFF_FFFF) as i32))
+}
+
+/// The histogram bin of `log2 |r|` (Q16.16); rates outside [`RATE_RANGE`] fall into the end
+/// bins.
+#[inline]
+fn bin_of(log2_rate: i32) -> usize {
+    (log2_rate.saturating_sub(LOG2_LO) / BIN_W).clamp(0, BINS as i32 - 1) as usize
 }
 
 /// Mass a region's histograms leave out beyond the paper's units' floor (`mass`, per sign

@@ -5,6 +5,7 @@
 use fixed::types::{I16F16, U16F16};
 
 use super::field::{Coverage, Field, FieldEstimate, FieldGeometry, FieldSettings, COL_BANDS};
+use super::stride_choice::Stride;
 use crate::flags;
 use crate::layout::Layout;
 use crate::log2::log2_q16;
@@ -192,11 +193,15 @@ impl RateDecoder {
         self.log2_stride
     }
 
-    /// `log2 |w|` (Q16.16) of a crossing of one pixel (the near units') in `2^log2_dt_s` s at
-    /// column `x`.
-    pub fn near_rotation_rate(&self, log2_dt_s: i32, x: u16) -> i32 {
-        self.rotation_rate(log2_dt_s, x)
-            .saturating_sub(self.log2_stride)
+    /// `log2 |w|` (Q16.16) of a crossing in `2^log2_dt_s` s at column `x` by the units of
+    /// `stride`: the layout's stride ([`RateDecoder::rotation_rate`]) or one pixel (the near
+    /// units').
+    pub fn rotation_rate_over(&self, stride: Stride, log2_dt_s: i32, x: u16) -> i32 {
+        let rate = self.rotation_rate(log2_dt_s, x);
+        match stride {
+            Stride::Near => rate.saturating_sub(self.log2_stride),
+            Stride::Layout => rate,
+        }
     }
 }
 

@@ -1051,10 +1051,7 @@ impl<'a> Decoding<'a> {
                     // pixel had another onset shortly before. Within an octave of their reach
                     // it lies beyond the slow units' floor ([`Field::add_beyond_floor`]).
                     if !c.busy() && l2dt > reach.saturating_sub(1 << 16) {
-                        let floor = match self.stride {
-                            Stride::Near => target.rates.near_rotation_rate(reach, x),
-                            Stride::Layout => target.rates.rotation_rate(reach, x),
-                        };
+                        let floor = target.rates.rotation_rate_over(self.stride, reach, x);
                         let region = target.field.geometry().region(x, y);
                         target.field.add_beyond_floor(region, positive, floor);
                     }
@@ -1096,10 +1093,7 @@ impl<'a> Decoding<'a> {
                 l2dt
             }
         };
-        let l2 = match self.stride {
-            Stride::Near => target.rates.near_rotation_rate(l2dt, x),
-            Stride::Layout => target.rates.rotation_rate(l2dt, x),
-        };
+        let l2 = target.rates.rotation_rate_over(self.stride, l2dt, x);
         let region = region.unwrap_or_else(|| target.field.geometry().region(x, y));
         target.field.add_in(self.population, region, l2, positive);
         target.samples += 1;
