@@ -90,10 +90,11 @@
 //! - A trigger goes to the slow units only where the paper's units do not burst, so the slow
 //!   units' histograms end at the paper's units' floor (the slowest rotation they time: 0.08
 //!   rad/s across one pixel at a DAVIS346's principal point), and a turn whose crossings
-//!   straddle it reads low from them (hover seed 1 at 0.066 rad/s: 0.82 of it, the paper's
-//!   units' decodes 1.49). The paper's units' decodes within an octave above their floor at
-//!   onsets the slow units decode too are counted per region and sign over the paper's units'
-//!   time constant ([`Field::add_beyond_floor`]); once the direction is established, the slow
+//!   straddle it reads low from them (hover seed 1 at 0.066 rad/s: the output read 0.80 of
+//!   it over 1.2-2.2 s, test `regimes::a_hover_turn_straddling_the_paper_units_floor`; the
+//!   decodes' medians, `docs/readout-notes.md`: slow units 0.82, paper's units 1.49). The
+//!   paper's units' decodes within an octave above their floor at onsets the slow units decode
+//!   too are counted per region and sign over the paper's units' time constant ([`Field::add_beyond_floor`]); once the direction is established, the slow
 //!   units' median counts them at the floor, scaled to the slow units' time constant, and at
 //!   most as many as the slow units decode in the octave below it (a distribution that goes on
 //!   past the floor has about as much there; where the slow units' decodes thin out before it,
