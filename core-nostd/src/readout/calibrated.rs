@@ -257,19 +257,15 @@ impl Calibrated {
     /// `log2 dt` (Q16.16, dt in s) that a burst with this drive codes for, with FAC time
     /// constant `2^log2_tau` µs, if it decodes.
     fn decode_dt(&self, drive: Trace, own_fac: Trace, log2_tau: i32) -> Option<i32> {
-        self.decode_dt_below(drive, self.ceiling(own_fac), log2_tau)
+        let ceiling = self.ceiling(own_fac);
+        let l2c = (ceiling > 0).then(|| log2_q16(ceiling, 0))?;
+        RateDecoder::log2_dt_s(self.log2_to_ceiling(drive, l2c)?, log2_tau)
     }
 
     /// `w_T` times the pixel's own trace `own` (Trace bits): the drive of an edge at no delay,
     /// which every decoded drive lies below.
     fn ceiling(&self, own: Trace) -> u64 {
         (u64::from(self.w_trg) * u64::from(own.to_bits())) >> 16
-    }
-
-    /// [`Calibrated::decode_dt`] with the pixel's [`Calibrated::ceiling`] known.
-    fn decode_dt_below(&self, drive: Trace, ceiling: u64, log2_tau: i32) -> Option<i32> {
-        let l2c = (ceiling > 0).then(|| log2_q16(ceiling, 0))?;
-        RateDecoder::log2_dt_s(self.log2_to_ceiling(drive, l2c)?, log2_tau)
     }
 
     /// `log2(drive / ceiling)` (Q16, below 0 for a drive that codes a crossing) from the
@@ -300,7 +296,7 @@ impl Calibrated {
 
     /// The paper's units' drive (of the stronger unit) and direction (`true`: right-to-left),
     /// if it bursts and codes a crossing (below the pixel's `ceiling`): what
-    /// [`Calibrated::decode_dt_below`] decodes, without the logarithms.
+    /// [`Calibrated::decode_dt`] decodes, without the logarithms.
     fn fast_burst(&self, drive: [Trace; 2], ceiling: u64) -> Option<(Trace, bool)> {
         let (fast, positive) = stronger(drive);
         (fast >= self.min_drive && u64::from(fast.to_bits()) < ceiling).then_some((fast, positive))
