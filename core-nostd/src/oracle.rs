@@ -810,7 +810,7 @@ impl OracleGate {
             refresh: (crate::readout::shared::REFRESH_US / period).max(1),
             phase: 0,
             last: None,
-            confirmation: crate::readout::shared::Confirmation::Waiting,
+            confirmation: crate::readout::shared::Confirmation::default(),
         }
     }
 
@@ -819,6 +819,7 @@ impl OracleGate {
         if self.phase == 0 {
             for field in fields.iter_mut() {
                 field.established = self.confirmation.established();
+                field.recent_motion = self.confirmation.moved_recently();
             }
             let now = two_population_estimate(fields, twins);
             let answer = self.confirmation.read(now.map(|v| v < 0.0));
@@ -1667,6 +1668,8 @@ pub struct OracleField {
     /// The readout has answered one direction for a while (see
     /// [`crate::readout::field::Field::set_direction_established`]).
     established: bool,
+    /// The readout answered a moment ago (the fixed-point field's `set_recent_motion`).
+    recent_motion: bool,
     /// Per region: the paper's units' decodes beyond this (slow units') field's floor per
     /// sign, leaky over `beyond_tau`, and the floor's bin (see
     /// [`crate::readout::field::Field::add_beyond_floor`]).
@@ -1715,6 +1718,7 @@ impl OracleField {
             recent: 0.0,
             short: 0.0,
             established: false,
+            recent_motion: false,
             beyond: std::vec![([0.0; 2], 0); 4 * COLS * ROWS],
             beyond_tau: 0.0,
         };
@@ -1869,7 +1873,7 @@ impl OracleField {
             let upper =
                 upper_coverage(|col, row| self.region_value(col * 2 * ROWS + row).is_some());
             let q16 = sides.map(|fits| fits.map(|fit| fit.map(|(v, _)| (v * 65536.0) as i64)));
-            match band_choice(&q16, upper, self.support, self.coverage) {
+            match band_choice(&q16, upper, self.support, self.coverage, self.recent_motion) {
                 BandChoice::Nothing => return None,
                 BandChoice::Side(side) => {
                     // Texture on one side only: its bands alone.

@@ -320,11 +320,13 @@ fn rotation_with_texture_on_one_side() {
 /// upper scenery hardly fires). The field asked for
 /// values there (or for all eight column band sides at one rate) and said "no evidence" on
 /// 99.9 % of the samples (seed 73, 4 s); nearly the whole width moving one way above the
-/// principal row now answers.
+/// principal row now answers (64.2 → 42.7 % RMSE / peak), and so do band values all of one
+/// sign within 100 ms of an answer, as when the turn reverses (43.8 → 35.1 %, "no evidence"
+/// while turning 57.5 → 38.6 %).
 #[test]
 fn rotation_at_half_contrast() {
     let (f, s) = scene_with(Regime::Rotation, 73, 4.0, |cfg| cfg.contrast = 0.5);
-    check_turning("rotation at half contrast", &f, &s, (0.6, 0.5, 0.7), 1.2);
+    check_turning("rotation at half contrast", &f, &s, (0.78, 0.4, 0.45), 1.2);
 }
 
 /// A calibrated lens seldom has its principal point at the centre: here 30 rows above it (100

@@ -469,6 +469,8 @@ pub struct Field {
     /// The readout has answered one direction for a while: see
     /// [`Field::set_direction_established`].
     established: bool,
+    /// The readout answered a moment ago: see [`Field::set_recent_motion`].
+    recent_motion: bool,
 }
 
 impl Field {
@@ -504,6 +506,7 @@ impl Field {
             coverage,
             by_agreement: true,
             established: false,
+            recent_motion: false,
         }
     }
 
@@ -518,6 +521,15 @@ impl Field {
     /// the turn on dev01.) Before, the settled count holds, as where motion has just started.
     pub fn set_direction_established(&mut self, established: bool) {
         self.established = established;
+    }
+
+    /// Tells the field that the readout answered a moment ago and does not now
+    /// ([`crate::readout::shared::Confirmation::moved_recently`]). Then the rows above the
+    /// principal row need not move as a rotation's: after a reversal, a pixel fires again only
+    /// once its brightness has moved back through the level it kept, and the top row band's
+    /// regions fill last.
+    pub fn set_recent_motion(&mut self, recent: bool) {
+        self.recent_motion = recent;
     }
 
     /// Chooses the population that answers by its decode rate instead of its decodes' sign
@@ -933,7 +945,13 @@ impl Field {
                 .is_some_and(Option::is_some)
         });
         let values = sides.map(|fits| fits.map(|fit| fit.map(|(v, _)| v)));
-        match band_choice(&values, upper, self.settings.support, self.coverage) {
+        match band_choice(
+            &values,
+            upper,
+            self.settings.support,
+            self.coverage,
+            self.recent_motion,
+        ) {
             BandChoice::Nothing => return FieldEstimate::NoEvidence,
             BandChoice::Side(side) => {
                 let mut values = [(0i64, 0u64); COL_BANDS];
@@ -1176,7 +1194,8 @@ pub(crate) enum BandChoice {
 /// [`upper_coverage`]); see the module documentation, "The estimator". The rows above the
 /// principal row must move as a rotation's (`above_is_rotation`), or every column band side
 /// at one rate (an object at one depth reads about 30 % slower in the outer bands), or nearly
-/// the whole width above the principal row one way (`wide_upper_motion`). Then a side with
+/// the whole width above the principal row one way (`wide_upper_motion`), or, right after the
+/// readout answered (`recent_motion`), all band values be of one sign. Then a side with
 /// values alone answers if its bands agree (`lone_side`, `bands_agree`); otherwise both
 /// sides' values, paired, if they are spread as a rotation's (`spread_is_rotation`).
 pub(crate) fn band_choice(
@@ -1184,9 +1203,11 @@ pub(crate) fn band_choice(
     (above, upper_band_sides): ([bool; ROW_BANDS], usize),
     support: u8,
     coverage: Coverage,
+    recent_motion: bool,
 ) -> BandChoice {
     let (n, lo, hi) = range_of(values.iter().flatten().flatten().copied());
-    let above_ok = above_is_rotation(above, coverage)
+    let above_ok = (recent_motion && (lo > 0 || hi < 0))
+        || above_is_rotation(above, coverage)
         || (n == 2 * COL_BANDS && bands_agree(lo, hi))
         || wide_upper_motion(above, upper_band_sides, values, (lo, hi));
     let bands = values.map(|side| side.map(|v| v.is_some()));
@@ -1826,6 +1847,52 @@ mod tests {
             }
             let v = rad_s(f.estimate());
             assert_eq!(v.is_some(), answers, "{} band sides: {v:?}", sides.len());
+            if let Some(v) = v {
+                assert!((v - 0.285).abs() < 0.05, "{v}");
+            }
+        }
+    }
+
+    #[test]
+    fn right_after_an_answer_the_rows_above_need_not_move_as_a_rotation() {
+        // Every column band side moves below the principal row and in the lowest row band
+        // above it, none in the top ones (after a reversal they fill last); the band values
+        // scatter by more than a fifth. Standing still before, that is no rotation; right
+        // after the readout answered, it is, if all of one sign; not where one band moves the
+        // other way (forward translation with its focus of expansion off the principal point,
+        // as a car's right after a bend).
+        let wide = |side: usize, band: usize| [300, 240, 330, 270][(band + side) % 4];
+        let translation = |side: usize, band: usize| {
+            let r = wide(side, band);
+            if side == 0 && band == COL_BANDS - 1 {
+                -r
+            } else {
+                r
+            }
+        };
+        for (rate, recent, answers) in [
+            (&wide as &dyn Fn(usize, usize) -> i64, false, false),
+            (&wide, true, true),
+            (&translation, true, false),
+        ] {
+            let mut f = field();
+            f.set_recent_motion(recent);
+            for _ in 0..30 {
+                for (side, band, _) in all_bands(|_, _| 0) {
+                    let r = rate(side, band);
+                    for (up, rows) in [(false, 0..ROW_BANDS), (true, 0..1)] {
+                        for row in rows {
+                            let (x, y) = pixel(side, band, up, row);
+                            for _ in 0..2 {
+                                f.add(Population::Fast, x, y, log2_rate(r.unsigned_abs()), r > 0);
+                            }
+                        }
+                    }
+                }
+                f.age();
+            }
+            let v = rad_s(f.estimate());
+            assert_eq!(v.is_some(), answers, "recent {recent}: {v:?}");
             if let Some(v) = v {
                 assert!((v - 0.285).abs() < 0.05, "{v}");
             }

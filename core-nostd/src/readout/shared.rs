@@ -42,6 +42,10 @@ pub const RESUME_READINGS: u8 = 3;
 /// started decide, which overshoot (a hover's turn after a pause).
 pub const ESTABLISHED_READINGS: u8 = 25;
 
+/// Readings (of [`REFRESH_US`] each) after the last answer within which the motion counts as
+/// recent ([`Confirmation::moved_recently`]): 100 ms at 1 kHz.
+pub const RECENT_READINGS: u8 = 25;
+
 /// Whether a reading of the field that shows a rotation is output, from the readings before
 /// it (one rule for [`OutputGate`] and the f64 oracle's gate). A rotation read right after "no
 /// evidence" is held back until the next reading shows a rotation of the same sign, unless it
@@ -50,16 +54,20 @@ pub const ESTABLISHED_READINGS: u8 = 25;
 /// regions to fill decide the first reading, and a few of the paper's units timing an edge
 /// near the end of their window (where they alias) can give it either sign; background
 /// activity makes such readings too, now and then, in front of a still camera.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Confirmation {
     /// No answer, or none recent: a rotation read now is held.
-    #[default]
-    Waiting,
+    Waiting {
+        /// Readings since the last answer (saturating; `u8::MAX` before any).
+        since: u8,
+    },
     /// A rotation of this sign (`true`: negative) was read right after "no evidence" and is
     /// held back.
     Held {
         /// Its sign.
         negative: bool,
+        /// Readings since the last answer (saturating; `u8::MAX` before any).
+        since: u8,
     },
     /// The last reading was output, a rotation of this sign.
     Answering {
@@ -77,11 +85,18 @@ pub enum Confirmation {
     },
 }
 
+impl Default for Confirmation {
+    fn default() -> Self {
+        Self::Waiting { since: u8::MAX }
+    }
+}
+
 impl Confirmation {
     /// Takes one reading (`Some(negative)`: a rotation of that sign; `None`: no evidence) and
     /// says whether it is output.
     pub fn read(&mut self, reading: Option<bool>) -> bool {
         let answering = |negative, readings| Self::Answering { negative, readings };
+        let since = self.since_answer().saturating_add(1);
         *self = match (*self, reading) {
             (
                 Self::Answering {
@@ -91,13 +106,13 @@ impl Confirmation {
                 Some(negative),
             ) if was == negative => answering(negative, readings.saturating_add(1)),
             (Self::Answering { .. }, Some(negative)) => answering(negative, 1),
-            (Self::Held { negative: held }, Some(negative)) if held == negative => {
+            (Self::Held { negative: held, .. }, Some(negative)) if held == negative => {
                 answering(negative, 1)
             }
             (Self::Paused { negative: was, .. }, Some(negative)) if was == negative => {
                 answering(negative, 1)
             }
-            (_, Some(negative)) => Self::Held { negative },
+            (_, Some(negative)) => Self::Held { negative, since },
             (Self::Answering { negative, .. }, None) => Self::Paused {
                 negative,
                 readings: 1,
@@ -108,9 +123,25 @@ impl Confirmation {
                     readings: readings + 1,
                 }
             }
-            (_, None) => Self::Waiting,
+            (_, None) => Self::Waiting { since },
         };
         matches!(self, Self::Answering { .. })
+    }
+
+    /// Readings since the last answer (0 while answering).
+    fn since_answer(&self) -> u8 {
+        match *self {
+            Self::Answering { .. } => 0,
+            Self::Paused { readings, .. } => readings,
+            Self::Waiting { since } | Self::Held { since, .. } => since,
+        }
+    }
+
+    /// Whether the readout does not answer now but did within [`RECENT_READINGS`]: the
+    /// camera was turning a moment ago (a reversal, a turn slowing through the paper's units'
+    /// floor), not standing still.
+    pub fn moved_recently(&self) -> bool {
+        (1..=RECENT_READINGS).contains(&self.since_answer())
     }
 
     /// Whether the last [`ESTABLISHED_READINGS`] readings in a row answered one sign.
@@ -294,7 +325,7 @@ impl OutputGate {
             refresh: (REFRESH_US / period_us.max(1)).max(1),
             phase: 0,
             value: I16F16::ZERO,
-            confirmation: Confirmation::Waiting,
+            confirmation: Confirmation::default(),
         }
     }
 
@@ -305,6 +336,7 @@ impl OutputGate {
         // over one period); the outputs between repeat the last reading.
         if self.phase == 0 {
             field.set_direction_established(self.confirmation.established());
+            field.set_recent_motion(self.confirmation.moved_recently());
             self.read(field.estimate());
         }
         self.phase += 1;
@@ -398,8 +430,32 @@ mod tests {
     }
 
     #[test]
+    fn the_motion_is_recent_for_its_readings_after_the_last_answer() {
+        let mut c = Confirmation::default();
+        // Never answered: nothing recent, however long it waits.
+        for _ in 0..300 {
+            assert!(!c.read(None) && !c.moved_recently());
+        }
+        assert!(!c.read(Some(true)) && !c.moved_recently(), "held");
+        assert!(c.read(Some(true)) && !c.moved_recently(), "answering");
+        for k in 1..=RECENT_READINGS {
+            let answered = c.read(None);
+            assert!(c.moved_recently(), "reading {k} after the answer");
+            assert!(!answered);
+        }
+        assert!(!c.read(None) && !c.moved_recently());
+        // After a pause in the answers, a reading of the other sign is held, and the motion
+        // is still recent (a reversal).
+        let mut c = Confirmation::default();
+        c.read(Some(false));
+        assert!(c.read(Some(false)));
+        assert!(!c.read(None) && c.moved_recently());
+        assert!(!c.read(Some(true)) && c.moved_recently());
+    }
+
+    #[test]
     fn the_direction_is_established_after_answering_one_sign_for_its_readings() {
-        let mut c = Confirmation::Waiting;
+        let mut c = Confirmation::default();
         // Held, then answering: established after ESTABLISHED_READINGS answers in a row.
         c.read(Some(true));
         for k in 1..=ESTABLISHED_READINGS {
