@@ -73,6 +73,9 @@
 //!   eight column band sides, all of one sign, the outer bands not slower than the inner ones
 //!   ([`WIDE_FALLOFF_TENTHS`]): people walking past move a few column bands at a time, and a
 //!   scene at half the usual contrast gets almost no decodes from its faint upper scenery.
+//!   Nor is it needed right after the readout answered ([`Field::set_recent_motion`]) when all
+//!   band values have one sign: after a reversal the top band's regions fill last, a camera
+//!   that stood still has not answered, and translation moves the halves opposite ways.
 //! - When more than a quarter of that weight ([`SPLIT_SHARE`]) says the other direction, the
 //!   field does not know which way the camera turns: "no rotation evidence" (just after a
 //!   reversal; straight driving past scenery at different depths either side).
