@@ -2032,6 +2032,9 @@ impl OracleField {
             .filter(|&r| (r < 0.0) == (median < 0.0) && (r - median).abs() <= median.abs() / 2.0);
         let median = majority_median.unwrap_or(median);
         let iqr = (q3 - q1).abs().max(self.spread_floor);
-        Some((median, iqr * iqr / total.floor().max(1.0)))
+        // Decodes split in sign say less than their spread shows (`field::split_variance`).
+        let cap = crate::readout::field::SPLIT_VARIANCE_CAP as f64;
+        let split = (total / (n - p).abs().max(f64::MIN_POSITIVE)).min(cap);
+        Some((median, iqr * iqr / total.floor().max(1.0) * split))
     }
 }
