@@ -1154,10 +1154,15 @@ impl BeyondFloor {
 /// and their many samples made them the most precise regions of their column bands, whose
 /// intercepts then read 0.1 rad/s; the field read half the turn for 0.1 s at a time.
 pub(crate) fn split_variance(variance: u64, [n, p]: [u64; 2]) -> u64 {
-    let total = u128::from(n) + u128::from(p);
-    let net = u128::from(n.abs_diff(p)).max(1);
-    let factor_num = total.min(net * u128::from(SPLIT_VARIANCE_CAP));
-    u64::try_from(u128::from(variance) * factor_num / net).unwrap_or(u64::MAX)
+    let (total, net) = (n.saturating_add(p), n.abs_diff(p));
+    if total >= net.saturating_mul(SPLIT_VARIANCE_CAP) {
+        return variance.saturating_mul(SPLIT_VARIANCE_CAP);
+    }
+    // 1 <= total / net < SPLIT_VARIANCE_CAP here, in Q16 (no 128-bit division: it costs a
+    // Cortex-M a library call per region and reading).
+    let factor_q16 = div_u64(total.saturating_mul(1 << 16), net);
+    let whole = (variance >> 16).saturating_mul(factor_q16);
+    whole.saturating_add(((variance & 0xFFFF) * factor_q16) >> 16)
 }
 
 /// The median rate of a region's majority sign (Q16 rad/s, signed; histograms `[neg, pos]` and
@@ -1928,9 +1933,11 @@ mod tests {
         assert_eq!(split_variance(100, [0, 50]), 100);
         assert_eq!(split_variance(100, [10, 30]), 200);
         assert_eq!(split_variance(100, [50, 50]), 100 * SPLIT_VARIANCE_CAP);
-        assert_eq!(split_variance(100, [0, 0]), 0);
+        // No decodes at all (a region then has no value): the cap.
+        assert_eq!(split_variance(100, [0, 0]), 100 * SPLIT_VARIANCE_CAP);
         assert_eq!(split_variance(u64::MAX, [u64::MAX, 0]), u64::MAX);
         assert_eq!(split_variance(u64::MAX, [1, 2]), u64::MAX);
+        assert_eq!(split_variance(1 << 40, [1 << 45, 1 << 46]), 3 << 40);
     }
 
     #[test]
