@@ -166,7 +166,7 @@ pub const SETTLED_SAMPLES_Q16: u32 = 32 << 16;
 pub const SETTLED_MINORITY_LOG2: u32 = 2;
 
 /// A region's variance is multiplied by its decodes over their net sign count, `(P + N) / |P -
-/// N|`, at most this much ([`split_variance`]): where its decodes split in sign (the ground
+/// N|`, at most this much (`split_variance`): where its decodes split in sign (the ground
 /// under forward flight and pitch, the aperture problem, noise) its signed median says less
 /// about the rate than its spread over so many samples shows.
 pub const SPLIT_VARIANCE_CAP: u64 = 4;
