@@ -800,6 +800,8 @@ struct OracleGate {
     last: Option<f64>,
     /// Whether the readings so far make an answer (the fixed-point gate's rule).
     confirmation: crate::readout::shared::Confirmation,
+    /// Readings since the last answer (the fixed-point gate's rule).
+    answer_age: crate::readout::shared::AnswerAge,
 }
 
 impl OracleGate {
@@ -810,7 +812,8 @@ impl OracleGate {
             refresh: (crate::readout::shared::REFRESH_US / period).max(1),
             phase: 0,
             last: None,
-            confirmation: crate::readout::shared::Confirmation::default(),
+            confirmation: crate::readout::shared::Confirmation::Waiting,
+            answer_age: crate::readout::shared::AnswerAge::default(),
         }
     }
 
@@ -819,10 +822,11 @@ impl OracleGate {
         if self.phase == 0 {
             for field in fields.iter_mut() {
                 field.established = self.confirmation.established();
-                field.recent_motion = self.confirmation.moved_recently();
+                field.recent_motion = self.answer_age.moved_recently();
             }
             let now = two_population_estimate(fields, twins);
             let answer = self.confirmation.read(now.map(|v| v < 0.0));
+            self.answer_age.after(answer);
             self.last = now.filter(|_| answer);
         }
         self.phase = (self.phase + 1) % self.refresh;

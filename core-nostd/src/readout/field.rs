@@ -534,7 +534,7 @@ impl Field {
     }
 
     /// Tells the field that the readout answered a moment ago and does not now
-    /// ([`crate::readout::shared::Confirmation::moved_recently`]). Then the rows above the
+    /// ([`crate::readout::shared::AnswerAge::moved_recently`]). Then the rows above the
     /// principal row need not move as a rotation's: after a reversal, a pixel fires again only
     /// once its brightness has moved back through the level it kept, and the top row band's
     /// regions fill last.

@@ -43,7 +43,7 @@ pub const RESUME_READINGS: u8 = 3;
 pub const ESTABLISHED_READINGS: u8 = 25;
 
 /// Readings (of [`REFRESH_US`] each) after the last answer within which the motion counts as
-/// recent ([`Confirmation::moved_recently`]): 100 ms at 1 kHz.
+/// recent ([`AnswerAge::moved_recently`]): 100 ms at 1 kHz.
 pub const RECENT_READINGS: u8 = 25;
 
 /// Whether a reading of the field that shows a rotation is output, from the readings before
@@ -54,20 +54,16 @@ pub const RECENT_READINGS: u8 = 25;
 /// regions to fill decide the first reading, and a few of the paper's units timing an edge
 /// near the end of their window (where they alias) can give it either sign; background
 /// activity makes such readings too, now and then, in front of a still camera.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Confirmation {
     /// No answer, or none recent: a rotation read now is held.
-    Waiting {
-        /// Readings since the last answer (saturating; `u8::MAX` before any).
-        since: u8,
-    },
+    #[default]
+    Waiting,
     /// A rotation of this sign (`true`: negative) was read right after "no evidence" and is
     /// held back.
     Held {
         /// Its sign.
         negative: bool,
-        /// Readings since the last answer (saturating; `u8::MAX` before any).
-        since: u8,
     },
     /// The last reading was output, a rotation of this sign.
     Answering {
@@ -85,18 +81,11 @@ pub enum Confirmation {
     },
 }
 
-impl Default for Confirmation {
-    fn default() -> Self {
-        Self::Waiting { since: u8::MAX }
-    }
-}
-
 impl Confirmation {
     /// Takes one reading (`Some(negative)`: a rotation of that sign; `None`: no evidence) and
     /// says whether it is output.
     pub fn read(&mut self, reading: Option<bool>) -> bool {
         let answering = |negative, readings| Self::Answering { negative, readings };
-        let since = self.since_answer().saturating_add(1);
         *self = match (*self, reading) {
             (
                 Self::Answering {
@@ -106,13 +95,13 @@ impl Confirmation {
                 Some(negative),
             ) if was == negative => answering(negative, readings.saturating_add(1)),
             (Self::Answering { .. }, Some(negative)) => answering(negative, 1),
-            (Self::Held { negative: held, .. }, Some(negative)) if held == negative => {
+            (Self::Held { negative: held }, Some(negative)) if held == negative => {
                 answering(negative, 1)
             }
             (Self::Paused { negative: was, .. }, Some(negative)) if was == negative => {
                 answering(negative, 1)
             }
-            (_, Some(negative)) => Self::Held { negative, since },
+            (_, Some(negative)) => Self::Held { negative },
             (Self::Answering { negative, .. }, None) => Self::Paused {
                 negative,
                 readings: 1,
@@ -123,30 +112,43 @@ impl Confirmation {
                     readings: readings + 1,
                 }
             }
-            (_, None) => Self::Waiting { since },
+            (_, None) => Self::Waiting,
         };
         matches!(self, Self::Answering { .. })
-    }
-
-    /// Readings since the last answer (0 while answering).
-    fn since_answer(&self) -> u8 {
-        match *self {
-            Self::Answering { .. } => 0,
-            Self::Paused { readings, .. } => readings,
-            Self::Waiting { since } | Self::Held { since, .. } => since,
-        }
-    }
-
-    /// Whether the readout does not answer now but did within [`RECENT_READINGS`]: the
-    /// camera was turning a moment ago (a reversal, a turn slowing through the paper's units'
-    /// floor), not standing still.
-    pub fn moved_recently(&self) -> bool {
-        (1..=RECENT_READINGS).contains(&self.since_answer())
     }
 
     /// Whether the last [`ESTABLISHED_READINGS`] readings in a row answered one sign.
     pub fn established(&self) -> bool {
         matches!(self, Self::Answering { readings, .. } if *readings >= ESTABLISHED_READINGS)
+    }
+}
+
+/// Readings since the readout last answered (saturating; `u8::MAX` before any): whether the
+/// motion is recent ([`RECENT_READINGS`]). One rule for [`OutputGate`] and the f64 oracle's gate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AnswerAge(u8);
+
+impl Default for AnswerAge {
+    fn default() -> Self {
+        Self(u8::MAX)
+    }
+}
+
+impl AnswerAge {
+    /// After one reading, which was output (`answered`) or not.
+    pub fn after(&mut self, answered: bool) {
+        self.0 = if answered {
+            0
+        } else {
+            self.0.saturating_add(1)
+        };
+    }
+
+    /// Whether the readout does not answer now but did within [`RECENT_READINGS`] readings:
+    /// the camera was turning a moment ago (a reversal, a turn slowing through the paper's
+    /// units' floor), not standing still.
+    pub fn moved_recently(&self) -> bool {
+        (1..=RECENT_READINGS).contains(&self.0)
     }
 }
 
@@ -314,6 +316,8 @@ pub struct OutputGate {
     value: I16F16,
     /// Whether the readings so far make an answer.
     confirmation: Confirmation,
+    /// Readings since the last answer.
+    answer_age: AnswerAge,
 }
 
 impl OutputGate {
@@ -325,7 +329,8 @@ impl OutputGate {
             refresh: (REFRESH_US / period_us.max(1)).max(1),
             phase: 0,
             value: I16F16::ZERO,
-            confirmation: Confirmation::default(),
+            confirmation: Confirmation::Waiting,
+            answer_age: AnswerAge::default(),
         }
     }
 
@@ -336,7 +341,7 @@ impl OutputGate {
         // over one period); the outputs between repeat the last reading.
         if self.phase == 0 {
             field.set_direction_established(self.confirmation.established());
-            field.set_recent_motion(self.confirmation.moved_recently());
+            field.set_recent_motion(self.answer_age.moved_recently());
             self.read(field.estimate());
         }
         self.phase += 1;
@@ -373,7 +378,8 @@ impl OutputGate {
             FieldEstimate::Rotation(v) => Some(I16F16::from_bits(v)),
             FieldEstimate::NoEvidence => None,
         };
-        self.confirmation.read(reading.map(|v| v < I16F16::ZERO));
+        let answered = self.confirmation.read(reading.map(|v| v < I16F16::ZERO));
+        self.answer_age.after(answered);
         self.value = reading.unwrap_or(I16F16::ZERO);
     }
 }
@@ -431,31 +437,34 @@ mod tests {
 
     #[test]
     fn the_motion_is_recent_for_its_readings_after_the_last_answer() {
-        let mut c = Confirmation::default();
+        let mut age = AnswerAge::default();
         // Never answered: nothing recent, however long it waits.
         for _ in 0..300 {
-            assert!(!c.read(None) && !c.moved_recently());
+            age.after(false);
+            assert!(!age.moved_recently());
         }
-        assert!(!c.read(Some(true)) && !c.moved_recently(), "held");
-        assert!(c.read(Some(true)) && !c.moved_recently(), "answering");
+        age.after(true);
+        assert!(!age.moved_recently(), "answering");
         for k in 1..=RECENT_READINGS {
-            let answered = c.read(None);
-            assert!(c.moved_recently(), "reading {k} after the answer");
-            assert!(!answered);
+            age.after(false);
+            assert!(age.moved_recently(), "reading {k} after the answer");
         }
-        assert!(!c.read(None) && !c.moved_recently());
-        // After a pause in the answers, a reading of the other sign is held, and the motion
-        // is still recent (a reversal).
-        let mut c = Confirmation::default();
-        c.read(Some(false));
-        assert!(c.read(Some(false)));
-        assert!(!c.read(None) && c.moved_recently());
-        assert!(!c.read(Some(true)) && c.moved_recently());
+        age.after(false);
+        assert!(!age.moved_recently());
+        // Through the gate: after a pause in the answers, a reading of the other sign is held
+        // back, and the motion is still recent (a reversal).
+        let (mut c, mut age) = (Confirmation::default(), AnswerAge::default());
+        for reading in [Some(false), Some(false), None, Some(true)] {
+            let answered = c.read(reading);
+            age.after(answered);
+        }
+        assert_eq!(c, Confirmation::Held { negative: true });
+        assert!(age.moved_recently());
     }
 
     #[test]
     fn the_direction_is_established_after_answering_one_sign_for_its_readings() {
-        let mut c = Confirmation::default();
+        let mut c = Confirmation::Waiting;
         // Held, then answering: established after ESTABLISHED_READINGS answers in a row.
         c.read(Some(true));
         for k in 1..=ESTABLISHED_READINGS {
