@@ -696,18 +696,24 @@ impl Field {
             return none;
         }
         let bin = usize::from(bin);
-        let [w_fast, w_slow] = self.weight.map(|w| u128::from(w.max(1)));
-        let [tau_fast, tau_slow] =
-            [Population::Fast, Population::Slow].map(|p| u128::from(self.tau_us(p)));
+        let [w_fast, w_slow] = self.weight.map(|w| u64::from(w.max(1)));
+        let [tau_fast, tau_slow] = [Population::Fast, Population::Slow].map(|p| self.tau_us(p));
+        // Weights below 2^17 and time constants below 2^32: both products fit.
+        let (num, den) = (w_slow * tau_slow, w_fast * tau_fast);
         let below = |h: &[u32; BINS]| -> u64 {
             h.get(bin.saturating_sub(OCTAVE_BINS)..bin)
                 .map_or(0, |b| b.iter().map(|&m| u64::from(m)).sum())
         };
+        // `m · num / den` exactly; in 64 bits whenever it fits (a 128-bit division costs a
+        // Cortex-M a library call per region and reading).
         let scaled = |m: u64, h: &[u32; BINS]| -> u64 {
-            let m = (u128::from(m) * w_slow * tau_slow)
-                .checked_div(w_fast * tau_fast)
-                .unwrap_or(0);
-            u64::try_from(m).unwrap_or(u64::MAX).min(below(h))
+            let m = match m.checked_mul(num) {
+                Some(p) => div_u64(p, den),
+                None => (u128::from(m) * u128::from(num))
+                    .checked_div(u128::from(den))
+                    .map_or(u64::MAX, |q| u64::try_from(q).unwrap_or(u64::MAX)),
+            };
+            m.min(below(h))
         };
         BeyondFloor {
             bin,
