@@ -1504,7 +1504,7 @@ impl SpikePopulation {
                 if busy || dt_s <= reach {
                     // The paper's units time this edge; within an octave of their reach it
                     // lies beyond the slow units' floor.
-                    if !busy && dt_s > reach / 2.0 {
+                    if !busy && dt_s >= reach / 2.0 {
                         let floor = f64::from(self.stride) / (reach * g);
                         target.field.add_beyond_floor(x, y, u == 1, floor);
                     }

@@ -60,7 +60,9 @@ use fixed::types::{I16F16, U16F16};
 
 use super::aperture::{self, Around};
 use super::field::{Field, FieldSettings, Population};
-use super::shared::{field_over, window_log2_s, OutputGate, RateDecoder};
+use super::shared::{
+    field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder,
+};
 use super::stride_choice::{Stride, StrideChoice};
 use super::Readout;
 use crate::layout::Layout;
@@ -307,7 +309,7 @@ impl Calibrated {
     /// between half their reach and their reach) and the slow units decode the onset too, the
     /// field counts it beyond the slow units' floor ([`Field::add_beyond_floor`]).
     fn count_beyond_floor(&mut self, t: &Trigger, dt: i32, stride: Stride, region: Option<usize>) {
-        if dt < self.reach_log2_s.saturating_sub(1 << 16) {
+        if !within_an_octave_of_reach(dt, self.reach_log2_s) {
             return;
         }
         let Some((_, positive)) = self.decode_slow(t) else {

@@ -152,6 +152,14 @@ impl AnswerAge {
     }
 }
 
+/// Whether a crossing of `2^log2_dt_s` s lies within an octave below the paper's units' reach
+/// `2^reach_log2_s` s (half of it or more; both Q16.16): a decode of that crossing lies within
+/// an octave above their floor, past the end of the slow units' histograms
+/// ([`Field::add_beyond_floor`]). One rule for both rad/s readouts.
+pub fn within_an_octave_of_reach(log2_dt_s: i32, reach_log2_s: i32) -> bool {
+    log2_dt_s >= reach_log2_s.saturating_sub(1 << 16)
+}
+
 /// `log2` of the window (s) of a unit with FAC time constant `2^log2_tau` µs: the longest
 /// crossing it times, where the drive of an edge on a pixel with one onset falls to the smallest
 /// that bursts (`tau_F ln(w_T w_F / min_drive)`: ~54 ms for the paper's units).

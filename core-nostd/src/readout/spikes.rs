@@ -135,7 +135,8 @@ use super::aperture::{self, Around};
 use super::calibrated::{has_near, Calibration, SLOW_TAU_A_US};
 use super::field::{Field, Population};
 use super::shared::{
-    field_over, window_log2_s, OutputGate, RateDecoder, DOMINANCE_LOG2, LOG2_1E6, WARMUP_US,
+    field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder, DOMINANCE_LOG2,
+    LOG2_1E6, WARMUP_US,
 };
 use super::stride_choice::{Stride, StrideChoice};
 use super::{Readout, Side};
@@ -1050,7 +1051,7 @@ impl<'a> Decoding<'a> {
                     // The paper's units time this edge: it crossed within their reach, or the
                     // pixel had another onset shortly before. Within an octave of their reach
                     // it lies beyond the slow units' floor ([`Field::add_beyond_floor`]).
-                    if !c.busy() && l2dt > reach.saturating_sub(1 << 16) {
+                    if !c.busy() && within_an_octave_of_reach(l2dt, reach) {
                         let floor = target.rates.rotation_rate_over(self.stride, reach, x);
                         let region = target.field.geometry().region(x, y);
                         target.field.add_beyond_floor(region, positive, floor);
