@@ -30,12 +30,13 @@
 //!   precision the interquartile range over the number of samples: where edges also move
 //!   vertically (the ground under forward motion) a horizontal unit suffers the aperture
 //!   problem and its decodes spread widely around the true horizontal flow, so such regions
-//!   count little; so do regions whose decodes split in sign (their variance times `(P + N) /
-//!   |P - N|`, at most [`SPLIT_VARIANCE_CAP`]). A region whose decodes agree in sign (at most a quarter the other way) and
-//!   that holds [`SETTLED_SAMPLES_Q16`] (any count once the readout has answered one direction
-//!   for 100 ms: [`Field::set_direction_established`]) reads the median of its majority sign
-//!   instead: there the other sign's decodes are timing errors, which would pull the signed
-//!   median towards slow rates (`majority_median`).
+//!   count little; so do regions whose decodes split in sign (their variance times
+//!   `(P + N) / |P - N|`, at most [`SPLIT_VARIANCE_CAP`]). A region whose decodes agree in
+//!   sign (at most a quarter the other way) and that holds [`SETTLED_SAMPLES_Q16`] (any
+//!   count once the readout has answered one direction for 100 ms:
+//!   [`Field::set_direction_established`]) reads the median of its majority sign instead:
+//!   there the other sign's decodes are timing errors, which would pull the signed median
+//!   towards slow rates (`majority_median`).
 //! - Per column band and side: the inverse-variance weighted least-squares intercept of the
 //!   region values against `Y` (slopes with a weak prior). When the fits of the band's rows
 //!   above and below the principal row alone differ by more than [`HALVES_DISAGREE_SIGMAS`]
@@ -98,8 +99,9 @@
 //!   it over 1.2-2.2 s, test `regimes::a_hover_turn_straddling_the_paper_units_floor`; the
 //!   decodes' medians, `docs/readout-notes.md`: slow units 0.82, paper's units 1.49). The
 //!   paper's units' decodes within an octave above their floor at onsets the slow units decode
-//!   too are counted per region and sign over the paper's units' time constant ([`Field::add_beyond_floor`]); once the direction is established, the slow
-//!   units' median counts them at the floor, scaled to the slow units' time constant, and at
+//!   too are counted per region and sign over the paper's units' time constant
+//!   ([`Field::add_beyond_floor`]); once the direction is established, the slow units'
+//!   median counts them at the floor, scaled to the slow units' time constant, and at
 //!   most as many as the slow units decode in the octave below it (a distribution that goes on
 //!   past the floor has about as much there; where the slow units' decodes thin out before it,
 //!   the paper's units' decodes near the floor are aliases or an onset's wake-ups).
@@ -1241,7 +1243,7 @@ pub(crate) fn band_choice(
     recent_motion: bool,
 ) -> BandChoice {
     let (n, lo, hi) = range_of(values.iter().flatten().flatten().copied());
-    let above_ok = (recent_motion && (lo > 0 || hi < 0))
+    let above_ok = (recent_motion && one_sign(lo, hi))
         || above_is_rotation(above, coverage)
         || (n == 2 * COL_BANDS && bands_agree(lo, hi))
         || wide_upper_motion(above, upper_band_sides, values, (lo, hi));
@@ -1337,7 +1339,7 @@ fn wide_upper_motion(
         }
     }
     let [(n_in, sum_in), (n_out, sum_out)] = halves;
-    (lo > 0 || hi < 0)
+    one_sign(lo, hi)
         && n_in > 0
         && n_out > 0
         && sum_out.saturating_mul(10).saturating_mul(n_in)
@@ -1357,11 +1359,16 @@ fn lone_side(bands: [[bool; COL_BANDS]; 2]) -> Option<usize> {
     }
 }
 
+/// Whether values from `lo` to `hi` (the least and the greatest) all have one sign (none 0).
+fn one_sign(lo: i64, hi: i64) -> bool {
+    lo > 0 || hi < 0
+}
+
 /// Whether column band values from `lo` to `hi` (any unit) agree as a rotation's: one sign,
 /// and `hi - lo` within `1 / BAND_SPREAD` of `|lo + hi| / 2`.
 fn bands_agree(lo: i64, hi: i64) -> bool {
     let mid = (lo / 2).saturating_add(hi / 2).saturating_abs();
-    (lo > 0 || hi < 0) && hi.saturating_sub(lo).saturating_mul(BAND_SPREAD) <= mid
+    one_sign(lo, hi) && hi.saturating_sub(lo).saturating_mul(BAND_SPREAD) <= mid
 }
 
 /// The weighted median of `(value Q16 rad/s, weight)` pairs: the smallest value whose weight,
