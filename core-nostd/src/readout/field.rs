@@ -1486,6 +1486,21 @@ mod tests {
         }
     }
 
+    /// Asserts that `f` answers exactly when `answers`, and then that it reads `want` rad/s to
+    /// within `tol`; `case` names the case in a failure.
+    fn assert_answer(
+        f: &Field,
+        answers: bool,
+        (want, tol): (f64, f64),
+        case: &dyn core::fmt::Debug,
+    ) {
+        let v = rad_s(f.estimate());
+        assert_eq!(v.is_some(), answers, "{case:?}: {v:?}");
+        if let Some(v) = v {
+            assert!((v - want).abs() < tol, "{case:?}: {v}");
+        }
+    }
+
     /// Feeds 400 ms of a slow turn to the right seen by the slow units only: in every region,
     /// per period, one slow decode at each rate of `slow` (mrad/s) and `beyond` decodes of the
     /// paper's units within an octave above their floor `floor` (mrad/s); returns the estimate
@@ -1783,11 +1798,7 @@ mod tests {
                 *slot = (side, band, 400);
             }
             feed(&mut f, with_rate.get(..bands.len()).unwrap_or_default());
-            let v = rad_s(f.estimate());
-            assert_eq!(v.is_some(), answers, "{bands:?}: {v:?}");
-            if let Some(v) = v {
-                assert!((v - 0.4).abs() < 0.05, "{v}");
-            }
+            assert_answer(&f, answers, (0.4, 0.05), &bands);
         }
     }
 
@@ -1830,16 +1841,7 @@ mod tests {
                 }
                 f.age();
             }
-            let v = rad_s(f.estimate());
-            let wanted = if answers { "a rotation" } else { "none" };
-            assert_eq!(
-                v.is_some(),
-                answers,
-                "row bands {above:?} above: {v:?}, {wanted}"
-            );
-            if let Some(v) = v {
-                assert!((v - 0.3).abs() < 0.06, "{v}");
-            }
+            assert_answer(&f, answers, (0.3, 0.06), &("row bands above", above));
         }
     }
 
@@ -1887,11 +1889,7 @@ mod tests {
                 }
                 f.age();
             }
-            let v = rad_s(f.estimate());
-            assert_eq!(v.is_some(), answers, "{} band sides: {v:?}", sides.len());
-            if let Some(v) = v {
-                assert!((v - 0.285).abs() < 0.05, "{v}");
-            }
+            assert_answer(&f, answers, (0.285, 0.05), &("band sides", sides.len()));
         }
     }
 
@@ -1933,11 +1931,7 @@ mod tests {
                 }
                 f.age();
             }
-            let v = rad_s(f.estimate());
-            assert_eq!(v.is_some(), answers, "recent {recent}: {v:?}");
-            if let Some(v) = v {
-                assert!((v - 0.285).abs() < 0.05, "{v}");
-            }
+            assert_answer(&f, answers, (0.285, 0.05), &("recent", recent));
         }
     }
 
@@ -2051,15 +2045,12 @@ mod tests {
                 }
                 f.age();
             }
-            let v = rad_s(f.estimate());
-            assert_eq!(
-                v.is_some(),
+            assert_answer(
+                &f,
                 answers,
-                "principal row {cy}, rows {above:?}: {v:?}"
+                (0.26, 0.06),
+                &("principal row, rows", cy, above),
             );
-            if let Some(v) = v {
-                assert!((v - 0.26).abs() < 0.06, "{v}");
-            }
         }
     }
 
