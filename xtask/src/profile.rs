@@ -25,8 +25,21 @@ pub struct Profile {
     /// executed the most instructions, most first: where inside a function they go (map an
     /// address to its source line with `addr2line -e ELF ADDR`).
     pub blocks: Vec<(u32, u64, String)>,
+    /// `(calling block's start address, calls, caller)` of the compiler's helper routines
+    /// ([`is_helper`]: memory copies and fills, 64-bit divisions), most first: a block that
+    /// runs right before one of them and is not one of them.
+    pub helper_callers: Vec<(u32, u64, String)>,
     /// All instructions executed.
     pub total: u64,
+}
+
+/// Whether `symbol` is one of the helper routines the compiler calls where the Cortex-M has
+/// no instruction: copies and fills (`memcpy`, `memset`, `memmove`, `__aeabi_memclr`) and
+/// 64-bit divisions (`__aeabi_uldivmod`, `__udivmoddi4`, `u64_div_rem`, ...).
+fn is_helper(symbol: &str) -> bool {
+    ["memcpy", "memset", "memmove", "memclr", "divmod", "div_rem"]
+        .iter()
+        .any(|r| symbol.contains(r))
 }
 
 /// Blocks listed in [`Profile::blocks`].
@@ -43,6 +56,10 @@ pub fn read_trace(log: impl BufRead) -> Result<Profile> {
     let mut runs: HashMap<u32, (u64, String)> = HashMap::new();
     // The block being listed: its start and instructions so far.
     let mut listing: Option<(Option<u32>, u32)> = None;
+    // The block executed last (its start, whether it is a helper routine) and the calls
+    // into helper routines per calling block.
+    let mut last: Option<(u32, bool)> = None;
+    let mut calls: HashMap<u32, u64> = HashMap::new();
     for line in log.lines() {
         let line = line.context("reading the QEMU log")?;
         if line.starts_with("IN:") {
@@ -68,6 +85,11 @@ pub fn read_trace(log: impl BufRead) -> Result<Profile> {
             };
             let e = runs.entry(pc).or_insert_with(|| (0, symbol.to_string()));
             e.0 += 1;
+            let mem = is_helper(symbol);
+            if let Some((from, false)) = last.filter(|_| mem) {
+                *calls.entry(from).or_default() += 1;
+            }
+            last = Some((pc, mem));
         }
     }
     if let Some((Some(a), n)) = listing {
@@ -76,10 +98,10 @@ pub fn read_trace(log: impl BufRead) -> Result<Profile> {
     let mut per: HashMap<String, u64> = HashMap::new();
     let mut blocks = Vec::with_capacity(runs.len());
     let mut total = 0u64;
-    for (pc, (count, symbol)) in runs {
-        let instructions = count * u64::from(sizes.get(&pc).copied().unwrap_or(1));
+    for (&pc, (count, symbol)) in &runs {
+        let instructions = *count * u64::from(sizes.get(&pc).copied().unwrap_or(1));
         total += instructions;
-        let function = demangle(&symbol);
+        let function = demangle(symbol);
         *per.entry(function.clone()).or_default() += instructions;
         blocks.push((pc, instructions, function));
     }
@@ -87,9 +109,19 @@ pub fn read_trace(log: impl BufRead) -> Result<Profile> {
     functions.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
     blocks.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
     blocks.truncate(HOT_BLOCKS);
+    let mut helper_callers: Vec<_> = calls
+        .into_iter()
+        .map(|(pc, n)| {
+            let f = runs.get(&pc).map(|r| demangle(&r.1)).unwrap_or_default();
+            (pc, n, f)
+        })
+        .collect();
+    helper_callers.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
+    helper_callers.truncate(HOT_BLOCKS);
     Ok(Profile {
         functions,
         blocks,
+        helper_callers,
         total,
     })
 }
@@ -126,6 +158,12 @@ impl Profile {
         for (pc, n, f) in &self.blocks {
             let share = 100.0 * *n as f64 / self.total.max(1) as f64;
             s.push_str(&format!("0x{pc:08x} {n:>14} {share:>6.2} %  {f}\n"));
+        }
+        s.push_str(
+            "\ncalls into helper routines (copies, fills, 64-bit divisions), by calling block\n",
+        );
+        for (pc, n, f) in &self.helper_callers {
+            s.push_str(&format!("0x{pc:08x} {n:>14}  {f}\n"));
         }
         s
     }
@@ -257,6 +295,32 @@ Trace 0: 0x7f5a14000240 [00800408/00001000/00000110/ff020200] _ZN10core_nostd7ne
             r.contains("0x00001000              9  69.23 %  core_nostd"),
             "{r}"
         );
+    }
+
+    #[test]
+    fn calls_into_helper_routines_are_counted_by_the_block_before_them() {
+        let log = "\
+IN: caller
+0x00002000:  b580       push     {r7, lr}
+
+IN: __aeabi_uldivmod
+0x00003000:  b580       push     {r7, lr}
+0x00003002:  bd80       pop      {r7, pc}
+
+IN: compiler_builtins::mem::memcpy
+0x00004000:  bd80       pop      {r7, pc}
+
+Trace 0: 0x1 [00800408/00002000/00000110/ff020200] caller
+Trace 0: 0x2 [00800408/00003000/00000110/ff020200] __aeabi_uldivmod
+Trace 0: 0x3 [00800408/00004000/00000110/ff020200] compiler_builtins::mem::memcpy
+Trace 0: 0x1 [00800408/00002000/00000110/ff020200] caller
+Trace 0: 0x3 [00800408/00004000/00000110/ff020200] compiler_builtins::mem::memcpy
+";
+        let p = read_trace(log.as_bytes()).unwrap();
+        // The division's own call into memcpy is not a caller's.
+        assert_eq!(p.helper_callers, vec![(0x2000, 2, "caller".to_string())]);
+        assert_eq!(p.total, 1 + 2 + 1 + 1 + 1);
+        assert!(p.report().contains("0x00002000              2  caller"));
     }
 
     #[test]
