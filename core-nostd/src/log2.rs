@@ -15,22 +15,44 @@ pub const LN2_Q32: u64 = 2_977_044_472;
 /// `log2(x / 2^frac_bits)` in Q16.16 for `x > 0`; `i32::MIN` for `x == 0`.
 #[inline]
 pub fn log2_q16(x: u64, frac_bits: u32) -> i32 {
+    match u32::try_from(x) {
+        // Most arguments are 32-bit values widened: 32-bit shifts on a Cortex-M.
+        Ok(x) => log2_q16_u32(x, frac_bits),
+        Err(_) => {
+            // x >= 2^32: the mantissa's 24 fractional bits lie below the leading one.
+            let msb = 63 - x.leading_zeros();
+            log2_of_mantissa(msb, (x >> (msb - 24)) as u32, frac_bits)
+        }
+    }
+}
+
+/// [`log2_q16`] of a 32-bit `x` (the same result).
+#[inline]
+fn log2_q16_u32(x: u32, frac_bits: u32) -> i32 {
     if x == 0 {
         return i32::MIN;
     }
-    let msb = 63 - x.leading_zeros() as i32; // floor(log2 x)
-                                             // Mantissa in [1, 2) as 24 fractional bits.
+    let msb = 31 - x.leading_zeros(); // floor(log2 x)
     let m = if msb >= 24 {
-        (x >> (msb - 24)) as u32
+        x >> (msb - 24)
     } else {
-        (x << (24 - msb)) as u32
-    } & 0x00FF_FFFF;
+        x << (24 - msb)
+    };
+    log2_of_mantissa(msb, m, frac_bits)
+}
+
+/// `msb - frac_bits + log2(m / 2^24)` in Q16.16, from the mantissa `m` (its bit 24 the
+/// leading one, bits above it ignored) of a number whose leading one is bit `msb`.
+#[inline(always)]
+fn log2_of_mantissa(msb: u32, m: u32, frac_bits: u32) -> i32 {
+    let m = m & 0x00FF_FFFF;
     let idx = (m >> 16) as usize;
     let frac = m & 0xFFFF;
     let a = LOG2_TABLE.get(idx).copied().unwrap_or(0);
     let b = LOG2_TABLE.get(idx + 1).copied().unwrap_or(a);
-    let interp = a + (((b - a) as u64 * u64::from(frac)) >> 16) as u32;
-    ((msb - frac_bits as i32) << 16).saturating_add(interp as i32)
+    // b - a < 2^9 (one 256th of an octave in Q0.16): the product fits 32 bits.
+    let interp = a + ((b.saturating_sub(a) * frac) >> 16);
+    ((msb as i32 - frac_bits as i32) << 16).saturating_add(interp as i32)
 }
 
 /// `2^(y / 2^16)` as a Q16.16 `u32`, saturating at `u32::MAX`, 0 far below.
@@ -158,6 +180,21 @@ mod tests {
         std::eprintln!("log2 worst error {worst:.2e}");
         assert!(worst < 3e-5, "{worst}");
         assert_eq!(log2_q16(0, 0), i32::MIN);
+    }
+
+    #[test]
+    fn a_number_and_its_shifted_copy_have_the_same_log2_on_either_side_of_2_pow_32() {
+        // Up to 24 significant bits the mantissa is exact, so shifting by `k` and counting
+        // `k` more fractional bits changes nothing, wherever the leading one lands.
+        let mut x: u64 = 1;
+        while x < (1 << 24) {
+            for k in [0u32, 8, 20, 31, 32, 33, 39] {
+                assert_eq!(log2_q16(x << k, 16 + k), log2_q16(x, 16), "{x} << {k}");
+            }
+            x = x * 3 / 2 + 1;
+        }
+        assert!(((64 << 16) - log2_q16(u64::MAX, 0)).abs() <= 1);
+        assert_eq!(log2_q16(1 << 63, 63), 0);
     }
 
     #[test]

@@ -341,11 +341,15 @@ pub(super) fn ln_q32(x: u64) -> Option<i64> {
     let m = x << lz; // mantissa in Q1.63, top bit set
     let i = ((m >> 55) & 0xFF) as usize;
     let rest = m & ((1u64 << 55) - 1);
-    // u = rest / (2^63 · (1 + i/256)) in Q0.32 (below 2^24).
-    let u = ((u128::from(rest) * u128::from(at(&INV_1P, i))) >> 62) as i64;
-    let u2 = (u * u) >> 32;
-    let u3 = (u2 * u) >> 32;
-    let ln_1p_u = u - u2 / 2 + u3 / 3;
+    // u = rest / (2^63 · (1 + i/256)) in Q0.32: `rest · inv >> 62` with `rest < 2^55` and
+    // `inv <= 2^31` (Q1.31), below 2^24, from two 32 x 32-bit products (the same value).
+    let inv = at(&INV_1P, i);
+    let u = (((rest >> 32) * inv + (((rest & 0xFFFF_FFFF) * inv) >> 32)) >> 30) as u32;
+    // u^2 below 2^16, u^3 below 2^8 (Q0.32): the series in 32 bits (u >= u^2 / 2), so the
+    // division by 3 is a multiplication on a Cortex-M, not a 64-bit division's call.
+    let u2 = ((u64::from(u) * u64::from(u)) >> 32) as u32;
+    let u3 = ((u64::from(u2) * u64::from(u)) >> 32) as u32;
+    let ln_1p_u = i64::from(u - u2 / 2 + u3 / 3);
     Some(exponent * LN2_Q32 + at(&LN_1P, i) as i64 + ln_1p_u)
 }
 
