@@ -64,23 +64,20 @@ pub fn exp2_q16(y: i32) -> u32 {
     let sub = frac & 0xFF;
     let a = EXP2_TABLE.get(idx).copied().unwrap_or(1 << 30);
     let b = EXP2_TABLE.get(idx + 1).copied().unwrap_or(a);
-    let m = u64::from(a) + ((u64::from(b - a) * u64::from(sub)) >> 8); // Q1.30
-                                                                       // value = m * 2^int / 2^30, wanted in Q16.16: shift by int - 14.
+    // Q1.30, in [2^30, 2^31): b - a < 2^23 (a 256th of an octave), so the product fits 32
+    // bits and the whole stays in 32-bit arithmetic on a Cortex-M.
+    let m = a + ((b.saturating_sub(a) * sub) >> 8);
+    // value = m * 2^int / 2^30, wanted in Q16.16: shift by int - 14.
     let shift = int - 14;
     if shift >= 0 {
-        if shift >= 32 {
-            return u32::MAX;
-        }
-        let v = m << shift;
-        if v > u64::from(u32::MAX) {
+        // m << shift fits 32 bits while the shift is at most m's leading zeros (m > 0).
+        if shift as u32 > m.leading_zeros() {
             u32::MAX
         } else {
-            v as u32
+            m << shift
         }
-    } else if shift <= -63 {
-        0
     } else {
-        (m >> (-shift)) as u32
+        m.checked_shr(shift.unsigned_abs()).unwrap_or(0)
     }
 }
 
@@ -195,6 +192,27 @@ mod tests {
         }
         assert!(((64 << 16) - log2_q16(u64::MAX, 0)).abs() <= 1);
         assert_eq!(log2_q16(1 << 63, 63), 0);
+    }
+
+    #[test]
+    fn exp2_in_32_bits_equals_the_same_interpolation_in_64() {
+        // The interpolation and the shift carried out in 64 bits, saturating at the end.
+        let wide = |y: i32| -> u32 {
+            let (int, frac) = (y >> 16, (y & 0xFFFF) as usize);
+            let a = u64::from(EXP2_TABLE[frac >> 8]);
+            let b = u64::from(EXP2_TABLE[(frac >> 8) + 1]);
+            let m = a + (((b - a) * (frac as u64 & 0xFF)) >> 8);
+            let shift = int - 14;
+            let v = if shift >= 0 {
+                m.checked_shl(shift as u32).filter(|v| v >> shift == m)
+            } else {
+                Some(m.checked_shr(shift.unsigned_abs()).unwrap_or(0))
+            };
+            v.map_or(u32::MAX, |v| u32::try_from(v).unwrap_or(u32::MAX))
+        };
+        for y in (-50 * 65536..50 * 65536).step_by(7).chain([i32::MIN, i32::MAX, -1, 0]) {
+            assert_eq!(exp2_q16(y), wide(y), "{y}");
+        }
     }
 
     #[test]
