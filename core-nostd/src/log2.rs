@@ -210,7 +210,10 @@ mod tests {
             };
             v.map_or(u32::MAX, |v| u32::try_from(v).unwrap_or(u32::MAX))
         };
-        for y in (-50 * 65536..50 * 65536).step_by(7).chain([i32::MIN, i32::MAX, -1, 0]) {
+        for y in (-50 * 65536..50 * 65536)
+            .step_by(7)
+            .chain([i32::MIN, i32::MAX, -1, 0])
+        {
             assert_eq!(exp2_q16(y), wide(y), "{y}");
         }
     }
