@@ -824,9 +824,10 @@ impl OracleGate {
                 field.established = self.confirmation.established();
                 field.recent_motion = self.answer_age.moved_recently();
             }
-            let now = two_population_estimate(fields, twins);
+            let (now, recent_needed) = two_population_estimate(fields, twins);
             let answer = self.confirmation.read(now.map(|v| v < 0.0));
-            self.answer_age.after(answer);
+            self.answer_age
+                .after(now.filter(|_| answer && !recent_needed).map(|v| v < 0.0));
             self.last = now.filter(|_| answer);
         }
         self.phase = (self.phase + 1) % self.refresh;
@@ -847,7 +848,8 @@ impl OracleGate {
 /// agree more in sign per unit of its time constant (`twins == false`, a layout without twin
 /// units: that decodes more), the slow units' figure scaled up while their histograms fill
 /// ([`OracleField::fill`]); the slow units' value scaled by their recent share of decodes.
-fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> Option<f64> {
+/// Also whether it needed the readout's answer a moment ago ([`OracleField::reading`]).
+fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> (Option<f64>, bool) {
     let [fast, slow] = fields;
     let by = |f: &OracleField| {
         if twins {
@@ -857,9 +859,10 @@ fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> Option<f64
         }
     };
     if by(fast) < by(slow) * slow.fill() {
-        slow.estimate().map(|v| v * slow.recent_share())
+        let (estimate, recent_needed) = slow.reading();
+        (estimate.map(|v| v * slow.recent_share()), recent_needed)
     } else {
-        fast.estimate()
+        fast.reading()
     }
 }
 
@@ -1673,7 +1676,7 @@ pub struct OracleField {
     /// [`crate::readout::field::Field::set_direction_established`]).
     established: bool,
     /// The readout answered a moment ago (the fixed-point field's `set_recent_motion`).
-    recent_motion: bool,
+    recent_motion: Option<crate::readout::field::RecentAnswer>,
     /// Per region: the paper's units' decodes beyond this (slow units') field's floor per
     /// sign, leaky over `beyond_tau`, and the floor's bin (see
     /// [`crate::readout::field::Field::add_beyond_floor`]).
@@ -1722,7 +1725,7 @@ impl OracleField {
             recent: 0.0,
             short: 0.0,
             established: false,
-            recent_motion: false,
+            recent_motion: None,
             beyond: std::vec![([0.0; 2], 0); 4 * COLS * ROWS],
             beyond_tau: 0.0,
         };
@@ -1860,6 +1863,20 @@ impl OracleField {
 
     /// The rotation the field shows, if it shows one.
     pub fn estimate(&self) -> Option<f64> {
+        self.reading().0
+    }
+
+    /// [`OracleField::estimate`], and whether it needed the readout's answer a moment ago to
+    /// show a rotation (the fixed-point field's `FieldReading::recent_needed`).
+    pub fn reading(&self) -> (Option<f64>, bool) {
+        let mut recent_needed = false;
+        let estimate = self.estimate_noting(&mut recent_needed);
+        (estimate, recent_needed && estimate.is_some())
+    }
+
+    /// [`OracleField::estimate`], setting `recent_needed` when the bands were chosen only
+    /// because the readout answered a moment ago.
+    fn estimate_noting(&self, recent_needed: &mut bool) -> Option<f64> {
         let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
         if self.short / short_tau * 8.0 < self.rate() {
             return None;
@@ -1877,7 +1894,10 @@ impl OracleField {
             let upper =
                 upper_coverage(|col, row| self.region_value(col * 2 * ROWS + row).is_some());
             let q16 = sides.map(|fits| fits.map(|fit| fit.map(|(v, _)| (v * 65536.0) as i64)));
-            match band_choice(&q16, upper, self.support, self.coverage, self.recent_motion) {
+            let (choice, needed) =
+                band_choice(&q16, upper, self.support, self.coverage, self.recent_motion);
+            *recent_needed = needed;
+            match choice {
                 BandChoice::Nothing => return None,
                 BandChoice::Side(side) => {
                     // Texture on one side only: its bands alone.
