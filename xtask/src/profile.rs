@@ -26,7 +26,7 @@ pub struct Profile {
     /// address to its source line with `addr2line -e ELF ADDR`).
     pub blocks: Vec<(u32, u64, String)>,
     /// `(calling block's start address, calls, caller)` of the compiler's helper routines
-    /// ([`is_helper`]: memory copies and fills, 64-bit divisions), most first: a block that
+    /// (memory copies and fills, 64-bit divisions: `is_helper`), most first: a block that
     /// runs right before one of them and is not one of them.
     pub helper_callers: Vec<(u32, u64, String)>,
     /// All instructions executed.
