@@ -1301,56 +1301,40 @@ pub(crate) enum BandChoice {
 /// it).
 pub(crate) fn band_choice(
     values: &[[Option<i64>; COL_BANDS]; 2],
-    upper: ([bool; ROW_BANDS], usize),
-    support: u8,
-    coverage: Coverage,
-    recent_motion: Option<RecentAnswer>,
-) -> (BandChoice, bool) {
-    let own = choose_bands(values, upper, support, coverage, None);
-    if own != BandChoice::Nothing || recent_motion.is_none() {
-        return (own, false);
-    }
-    let choice = choose_bands(values, upper, support, coverage, recent_motion);
-    (choice, choice != BandChoice::Nothing)
-}
-
-/// [`band_choice`]'s rule with `recent_motion` given (the answer a moment ago only adds
-/// choices: a choice without it is the same with it).
-fn choose_bands(
-    values: &[[Option<i64>; COL_BANDS]; 2],
     (above, upper_band_sides): ([bool; ROW_BANDS], usize),
     support: u8,
     coverage: Coverage,
     recent_motion: Option<RecentAnswer>,
-) -> BandChoice {
+) -> (BandChoice, bool) {
     let (n, lo, hi) = range_of(values.iter().flatten().flatten().copied());
+    let above_own = above_is_rotation(above, coverage)
+        || (n == 2 * COL_BANDS && bands_agree(lo, hi))
+        || wide_upper_motion(above, upper_band_sides, values, (lo, hi));
     // All values the other way from the answer a moment ago (a reversal), or one way while
     // the answer is fresh.
     let after_answer = recent_motion.is_some_and(|r| {
         let reversed = if r.negative { lo > 0 } else { hi < 0 };
         reversed || (r.fresh && one_sign(lo, hi))
     });
-    let above_ok = after_answer
-        || above_is_rotation(above, coverage)
-        || (n == 2 * COL_BANDS && bands_agree(lo, hi))
-        || wide_upper_motion(above, upper_band_sides, values, (lo, hi));
+    let above_ok = above_own || after_answer;
     let bands = values.map(|side| side.map(|v| v.is_some()));
     if let Some(side) = lone_side(bands) {
         let fits = values.get(side).map_or(&[][..], |f| &f[..]);
         let (_, lo, hi) = range_of(fits.iter().flatten().copied());
         return if above_ok && bands_agree(lo, hi) {
-            BandChoice::Side(side)
+            (BandChoice::Side(side), !above_own)
         } else {
-            BandChoice::Nothing
+            (BandChoice::Nothing, false)
         };
     }
-    let recent_on_both_sides = recent_motion.is_some()
+    let spread_own = spread_is_rotation(bands, support, coverage);
+    let on_both_sides_after_answer = recent_motion.is_some()
         && one_sign(lo, hi)
         && bands.iter().all(|side| side.contains(&true));
-    if above_ok && (recent_on_both_sides || spread_is_rotation(bands, support, coverage)) {
-        BandChoice::Pairs
+    if above_ok && (spread_own || on_both_sides_after_answer) {
+        (BandChoice::Pairs, !(above_own && spread_own))
     } else {
-        BandChoice::Nothing
+        (BandChoice::Nothing, false)
     }
 }
 
