@@ -798,10 +798,9 @@ struct OracleGate {
     phase: u32,
     /// What the outputs say until the next reading (`None`: no evidence).
     last: Option<f64>,
-    /// Whether the readings so far make an answer (the fixed-point gate's rule).
-    confirmation: crate::readout::shared::Confirmation,
-    /// Readings since the last answer (the fixed-point gate's rule).
-    answer_age: crate::readout::shared::AnswerAge,
+    /// Whether the readings so far make an answer, and how long since the last (the
+    /// fixed-point gate's rule).
+    answers: crate::readout::shared::Answers,
 }
 
 impl OracleGate {
@@ -812,8 +811,7 @@ impl OracleGate {
             refresh: (crate::readout::shared::REFRESH_US / period).max(1),
             phase: 0,
             last: None,
-            confirmation: crate::readout::shared::Confirmation::Waiting,
-            answer_age: crate::readout::shared::AnswerAge::default(),
+            answers: crate::readout::shared::Answers::default(),
         }
     }
 
@@ -821,13 +819,11 @@ impl OracleGate {
     fn output(&mut self, fields: &mut [OracleField; 2], twins: bool) -> (f64, u8) {
         if self.phase == 0 {
             for field in fields.iter_mut() {
-                field.established = self.confirmation.established();
-                field.recent_motion = self.answer_age.moved_recently();
+                field.established = self.answers.established();
+                field.recent_motion = self.answers.moved_recently();
             }
             let (now, recent_needed) = two_population_estimate(fields, twins);
-            let answer = self.confirmation.read(now.map(|v| v < 0.0));
-            self.answer_age
-                .after(now.filter(|_| answer && !recent_needed).map(|v| v < 0.0));
+            let answer = self.answers.read(now.map(|v| v < 0.0), recent_needed);
             self.last = now.filter(|_| answer);
         }
         self.phase = (self.phase + 1) % self.refresh;

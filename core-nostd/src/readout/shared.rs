@@ -187,6 +187,42 @@ impl AnswerAge {
     }
 }
 
+/// The readings so far as both gates take them: whether they make an answer
+/// ([`Confirmation`]) and how long since the field last answered on its own evidence
+/// ([`AnswerAge`]). One rule for [`OutputGate`] and the f64 oracle's gate.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Answers {
+    confirmation: Confirmation,
+    age: AnswerAge,
+}
+
+impl Answers {
+    /// Takes one reading (`Some(negative)`: a rotation of that sign; `None`: no evidence),
+    /// which needed the answer a moment ago or not ([`FieldReading::recent_needed`]), and
+    /// says whether it is output.
+    pub fn read(&mut self, reading: Option<bool>, recent_needed: bool) -> bool {
+        let answered = self.confirmation.read(reading);
+        self.age
+            .after(reading.filter(|_| answered && !recent_needed));
+        answered
+    }
+
+    /// Whether the last reading was output.
+    pub fn answering(&self) -> bool {
+        matches!(self.confirmation, Confirmation::Answering { .. })
+    }
+
+    /// See [`Confirmation::established`].
+    pub fn established(&self) -> bool {
+        self.confirmation.established()
+    }
+
+    /// See [`AnswerAge::moved_recently`].
+    pub fn moved_recently(&self) -> Option<RecentAnswer> {
+        self.age.moved_recently()
+    }
+}
+
 /// Whether a crossing of `2^log2_dt_s` s lies within an octave below the paper's units' reach
 /// `2^reach_log2_s` s (half of it or more; both Q16.16): a decode of that crossing lies within
 /// an octave above their floor, past the end of the slow units' histograms
@@ -355,12 +391,10 @@ pub struct OutputGate {
     refresh: u32,
     /// Outputs since the last reading, modulo `refresh`.
     phase: u32,
-    /// The last reading's rate, output while `confirmation` answers.
+    /// The last reading's rate, output while `answers` answers.
     value: I16F16,
-    /// Whether the readings so far make an answer.
-    confirmation: Confirmation,
-    /// Readings since the last answer.
-    answer_age: AnswerAge,
+    /// Whether the readings so far make an answer, and how long since the last.
+    answers: Answers,
 }
 
 impl OutputGate {
@@ -372,8 +406,7 @@ impl OutputGate {
             refresh: (REFRESH_US / period_us.max(1)).max(1),
             phase: 0,
             value: I16F16::ZERO,
-            confirmation: Confirmation::Waiting,
-            answer_age: AnswerAge::default(),
+            answers: Answers::default(),
         }
     }
 
@@ -383,8 +416,8 @@ impl OutputGate {
         // The field is read every `refresh` outputs (its histograms change over tau_A, not
         // over one period); the outputs between repeat the last reading.
         if self.phase == 0 {
-            field.set_direction_established(self.confirmation.established());
-            field.set_recent_motion(self.answer_age.moved_recently());
+            field.set_direction_established(self.answers.established());
+            field.set_recent_motion(self.answers.moved_recently());
             self.read(field.reading());
         }
         self.phase += 1;
@@ -407,9 +440,10 @@ impl OutputGate {
 
     /// What the outputs say until the next reading.
     fn said(&self) -> (I16F16, u8) {
-        match self.confirmation {
-            Confirmation::Answering { .. } => (self.value, 0),
-            _ => (I16F16::ZERO, flags::NO_EVIDENCE),
+        if self.answers.answering() {
+            (self.value, 0)
+        } else {
+            (I16F16::ZERO, flags::NO_EVIDENCE)
         }
     }
 
@@ -421,10 +455,8 @@ impl OutputGate {
             FieldEstimate::Rotation(v) => Some(I16F16::from_bits(v)),
             FieldEstimate::NoEvidence => None,
         };
-        let answered = self.confirmation.read(reading.map(|v| v < I16F16::ZERO));
-        let own = answered && !field.recent_needed;
-        self.answer_age
-            .after(reading.filter(|_| own).map(|v| v < I16F16::ZERO));
+        self.answers
+            .read(reading.map(|v| v < I16F16::ZERO), field.recent_needed);
         self.value = reading.unwrap_or(I16F16::ZERO);
     }
 }
@@ -503,15 +535,33 @@ mod tests {
         }
         age.after(None);
         assert_eq!(age.moved_recently(), None);
-        // Through the gate: after a pause in the answers, a reading of the other sign is held
-        // back, and the motion is still recent, the other way (a reversal).
-        let (mut c, mut age) = (Confirmation::default(), AnswerAge::default());
+        // Through the gates' rule: after a pause in the answers, a reading of the other sign
+        // is held back, and the motion is still recent, the other way (a reversal).
+        let mut a = Answers::default();
         for reading in [Some(false), Some(false), None, Some(true)] {
-            let answered = c.read(reading);
-            age.after(reading.filter(|_| answered));
+            a.read(reading, false);
         }
-        assert_eq!(c, Confirmation::Held { negative: true });
-        assert_eq!(age.moved_recently().map(|r| r.negative), Some(false));
+        assert_eq!(a.confirmation, Confirmation::Held { negative: true });
+        assert_eq!(a.moved_recently().map(|r| r.negative), Some(false));
+        // Answers that needed the motion to be recent are output, but do not make it recent
+        // again: it ends RECENT_READINGS after the last answer on the field's own evidence.
+        let mut a = Answers::default();
+        for _ in 0..2 {
+            a.read(Some(false), false);
+        }
+        for k in 1..=RECENT_READINGS {
+            // In turns: "no evidence", then a rotation that needed the motion to be recent.
+            let needed = k % 2 == 0;
+            assert_eq!(
+                a.read(needed.then_some(false), needed),
+                needed,
+                "reading {k}"
+            );
+            assert!(a.moved_recently().is_some(), "reading {k}");
+        }
+        a.read(Some(false), true);
+        assert!(a.answering());
+        assert_eq!(a.moved_recently(), None, "{a:?}");
     }
 
     #[test]
