@@ -1857,21 +1857,16 @@ impl OracleField {
         }
     }
 
-    /// The rotation the field shows, if it shows one.
-    pub fn estimate(&self) -> Option<f64> {
-        self.reading().0
-    }
-
-    /// [`OracleField::estimate`], and whether it needed the readout's answer a moment ago to
-    /// show a rotation (the fixed-point field's `FieldReading::recent_needed`).
+    /// The rotation the field shows, if it shows one, and whether it needed the readout's
+    /// answer a moment ago to show it (the fixed-point field's `FieldReading::recent_needed`).
     pub fn reading(&self) -> (Option<f64>, bool) {
         let mut recent_needed = false;
         let estimate = self.estimate_noting(&mut recent_needed);
         (estimate, recent_needed && estimate.is_some())
     }
 
-    /// [`OracleField::estimate`], setting `recent_needed` when the bands were chosen only
-    /// because the readout answered a moment ago.
+    /// [`OracleField::reading`]'s rotation, setting `recent_needed` when the bands were chosen
+    /// only because the readout answered a moment ago.
     fn estimate_noting(&self, recent_needed: &mut bool) -> Option<f64> {
         let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
         if self.short / short_tau * 8.0 < self.rate() {

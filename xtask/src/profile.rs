@@ -85,11 +85,11 @@ pub fn read_trace(log: impl BufRead) -> Result<Profile> {
             };
             let e = runs.entry(pc).or_insert_with(|| (0, symbol.to_string()));
             e.0 += 1;
-            let mem = is_helper(symbol);
-            if let Some((from, false)) = last.filter(|_| mem) {
+            let helper = is_helper(symbol);
+            if let Some((from, false)) = last.filter(|_| helper) {
                 *calls.entry(from).or_default() += 1;
             }
-            last = Some((pc, mem));
+            last = Some((pc, helper));
         }
     }
     if let Some((Some(a), n)) = listing {
