@@ -439,7 +439,7 @@ fn people_walking_past_a_hovering_drone_that_turns() {
     );
 }
 
-/// A hovering drone (seed 501, held out) that stops turning at 1.6 s while three people walk
+/// A hovering drone (seed 501, rendered after the other rules) that stops turning at 1.6 s while three people walk
 /// on past it, one way on both sides of the view. When every answer the field gave right after
 /// an answer restarted the 100 ms in which band values of one sign need not reach the top row
 /// band, the people kept the readout answering in turns with "no evidence" at about -0.2 rad/s

@@ -141,8 +141,8 @@ impl Confirmation {
 /// recent ([`FieldReading::recent_needed`]) does not make it recent again: else people
 /// walking past a drone that stopped turning, one sign on both sides of the view, kept the
 /// readout answering in turns with "no evidence" (hover seed 501 with three objects: 16.1 →
-/// 36.4 % of peak when the rule came, 16.2 % with this and the rows above relaxed only for a
-/// reversal). One rule for [`OutputGate`] and the f64 oracle's gate.
+/// 36.4 % of peak when the rule came, 17.8 % with this and the same-way reading limited to
+/// [`FRESH_READINGS`]). Kept by [`Answers`] for both gates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AnswerAge {
     readings: u8,
