@@ -820,10 +820,13 @@ impl OracleGate {
         if self.phase == 0 {
             for field in fields.iter_mut() {
                 field.established = self.answers.established();
-                field.recent_motion = self.answers.moved_recently();
+                field.recent_motion = self.answers.last_answer();
             }
             let (now, recent_needed) = two_population_estimate(fields, twins);
-            let answer = self.answers.read(now.map(|v| v < 0.0), recent_needed);
+            // In the fixed-point gate's units (Q16 rad/s; the estimate is clamped to 20).
+            let answer = self
+                .answers
+                .read(now.map(|v| (v * 65536.0) as i32), recent_needed);
             self.last = now.filter(|_| answer);
         }
         self.phase = (self.phase + 1) % self.refresh;
@@ -1873,6 +1876,8 @@ impl OracleField {
             return None;
         }
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
+        // The answer a moment ago that the estimate must continue, if any.
+        let mut to_continue = None;
         if self.coverage.paired_bands > 0 {
             // Every left band with every right band, when the values are spread as a
             // rotation's (the fixed-point field's rule).
@@ -1895,7 +1900,10 @@ impl OracleField {
                     let fits = sides.get(side).map_or(&[][..], |f| &f[..]);
                     values.extend(fits.iter().flatten().map(|&(v, var)| (v, 1.0 / var)));
                 }
-                BandChoice::Pairs => {
+                BandChoice::Pairs | BandChoice::Continuing => {
+                    if choice == BandChoice::Continuing {
+                        to_continue = self.recent_motion;
+                    }
                     let [left, right] = sides;
                     for &(a, va) in left.iter().flatten() {
                         for &(c, vc) in right.iter().flatten() {
@@ -1930,13 +1938,22 @@ impl OracleField {
             return None;
         }
         let mut acc = 0.0;
-        for &(x, w) in &values {
-            acc += w;
-            if 2.0 * acc >= total {
-                return Some(x.clamp(-20.0, 20.0));
-            }
+        let median = values
+            .iter()
+            .find(|&&(_, w)| {
+                acc += w;
+                2.0 * acc >= total
+            })
+            .or(values.last())
+            .map(|v| v.0.clamp(-20.0, 20.0));
+        match to_continue {
+            // Within `1 / BAND_SPREAD` of the answer a moment ago (the fixed-point rule).
+            Some(r) => median.filter(|&m| {
+                let rate = f64::from(r.rate_q16) / 65536.0;
+                (m - rate).abs() * crate::readout::field::BAND_SPREAD as f64 <= rate.abs()
+            }),
+            None => median,
         }
-        values.last().map(|v| v.0.clamp(-20.0, 20.0))
     }
 
     /// Intercept at `Y = 0` of one column band's weighted fit on one side, and its variance:

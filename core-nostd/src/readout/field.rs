@@ -84,7 +84,12 @@
 //!   band values have the other sign: after a reversal the top band's regions fill last, a
 //!   camera that stood still has not answered, and translation moves the halves opposite
 //!   ways. (Not after an answer the same way: people walking on past a drone that has just
-//!   stopped turning move that way too.)
+//!   stopped turning move that way too.) Nor, within 100 ms of an answer, when the band values
+//!   are spread as a rotation's, of that answer's sign, in at least [`ABOVE_SUPPORT`] row
+//!   bands above, and their estimate continues the answer's rate to within a fifth
+//!   ([`BAND_SPREAD`]): a steady turn whose texture leaves the top row band (sky coming into
+//!   view) goes on being read, where people walking on past a drone that stopped read at a
+//!   rate of their own.
 //! - When more than a quarter of that weight ([`SPLIT_SHARE`]) says the other direction, the
 //!   field does not know which way the camera turns: "no rotation evidence" (just after a
 //!   reversal; straight driving past scenery at different depths either side).
@@ -436,13 +441,40 @@ pub enum FieldEstimate {
 }
 
 /// The readout's last answer on the field's own evidence, when it came a moment ago
-/// ([`crate::readout::shared::AnswerAge::moved_recently`]; [`Field::set_recent_motion`]).
+/// ([`crate::readout::shared::AnswerAge::last_answer`]; [`Field::set_recent_motion`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RecentAnswer {
-    /// Its sign (`true`: negative).
-    pub negative: bool,
-    /// It came within [`crate::readout::shared::FRESH_READINGS`] readings.
-    pub fresh: bool,
+    /// Its rate (Q16 rad/s, not 0).
+    pub rate_q16: i32,
+    /// Readings since (0: the last reading; at most
+    /// [`crate::readout::shared::RECENT_READINGS`]).
+    pub readings: u8,
+}
+
+impl RecentAnswer {
+    /// Whether it was negative (turning left).
+    pub fn negative(&self) -> bool {
+        self.rate_q16 < 0
+    }
+
+    /// Whether the readout has paused since: it does not answer now.
+    pub fn paused(&self) -> bool {
+        self.readings > 0
+    }
+
+    /// Whether the readout has paused since for at most
+    /// [`crate::readout::shared::FRESH_READINGS`] readings.
+    pub fn fresh(&self) -> bool {
+        self.paused() && self.readings <= crate::readout::shared::FRESH_READINGS
+    }
+
+    /// Whether `estimate` continues it: a rotation within `1 / BAND_SPREAD` of its rate (the
+    /// spread a rotation's band values keep, [`BAND_SPREAD`]).
+    pub fn continued_by(&self, estimate: FieldEstimate) -> bool {
+        let rate = i64::from(self.rate_q16);
+        matches!(estimate, FieldEstimate::Rotation(v)
+            if (i64::from(v) - rate).saturating_abs().saturating_mul(BAND_SPREAD) <= rate.abs())
+    }
 }
 
 /// What the field shows ([`Field::reading`]) and whether it needed the readout's answer a
@@ -578,13 +610,17 @@ impl Field {
         self.established = established;
     }
 
-    /// Tells the field that the readout answered a moment ago, and does not now
-    /// ([`crate::readout::shared::AnswerAge::moved_recently`]); `None` otherwise. Then the
-    /// rows above the principal row need not move as a rotation's where all band values have
-    /// the other sign (a reversal: a pixel fires again only once its brightness has moved back
-    /// through the level it kept, and the top row band's regions fill last), or one sign
-    /// while the answer is fresh ([`RecentAnswer::fresh`]); nor need the column bands be
-    /// spread as a rotation's beyond a value on each side, all of one sign.
+    /// Tells the field the readout's answer a moment ago
+    /// ([`crate::readout::shared::AnswerAge::last_answer`]); `None` otherwise. Once the
+    /// readout has paused ([`RecentAnswer::paused`]), the rows above the principal row need
+    /// not move as a rotation's where all band values have the other sign (a reversal: a pixel
+    /// fires again only once its brightness has moved back through the level it kept, and the
+    /// top row band's regions fill last), or one sign while the answer is fresh
+    /// ([`RecentAnswer::fresh`]); nor need the column bands be spread as a rotation's beyond a
+    /// value on each side, all of one sign. And band values spread as a rotation's, the same
+    /// way, with values in [`ABOVE_SUPPORT`] row bands above the principal row, answer without
+    /// the top one or the width when their estimate continues that answer's rate
+    /// ([`RecentAnswer::continued_by`]): a turn whose texture leaves the top row band.
     pub fn set_recent_motion(&mut self, recent: Option<RecentAnswer>) {
         self.recent_motion = recent;
     }
@@ -1042,7 +1078,7 @@ impl Field {
                 }
                 return reading(weighted_median(values.get(..n).unwrap_or(&[])));
             }
-            BandChoice::Pairs => {}
+            BandChoice::Pairs | BandChoice::Continuing => {}
         }
         let [left, right] = sides;
         let mut values = [(0i64, 0u64); COL_BANDS * COL_BANDS];
@@ -1055,7 +1091,12 @@ impl Field {
                 }
             }
         }
-        reading(weighted_median(values.get(..n).unwrap_or(&[])))
+        let estimate = weighted_median(values.get(..n).unwrap_or(&[]));
+        let continues = |r: RecentAnswer| r.continued_by(estimate);
+        if choice == BandChoice::Continuing && !self.recent_motion.is_some_and(continues) {
+            return FieldReading::NOTHING;
+        }
+        reading(estimate)
     }
 
     /// The rate at the principal row (`Y = 0`) of one column band on one side, and its
@@ -1285,6 +1326,9 @@ pub(crate) enum BandChoice {
     Side(usize),
     /// Every left band's value paired with every right band's.
     Pairs,
+    /// As `Pairs`, but an answer only if their estimate continues the readout's answer a
+    /// moment ago ([`RecentAnswer::continued_by`]).
+    Continuing,
 }
 
 /// The rule of [`Field`] and of the f64 oracle's field on the column band values
@@ -1297,9 +1341,11 @@ pub(crate) enum BandChoice {
 /// sign while that answer is fresh). Then a side with
 /// values alone answers if its bands agree (`lone_side`, `bands_agree`); otherwise both
 /// sides' values, paired, if they are spread as a rotation's (`spread_is_rotation`) or,
-/// right after the readout answered, if each side has one and all have one sign. Also says
-/// whether the choice needed the answer a moment ago (`Nothing` without it, something with
-/// it).
+/// right after the readout answered, if each side has one and all have one sign. Where the
+/// rows above fail only in their top row band or their width, values spread as a rotation's,
+/// of the recent answer's sign, in [`ABOVE_SUPPORT`] row bands above may continue that answer
+/// (`Continuing`: texture that leaves the top band in the middle of a turn). Also says whether
+/// the choice needed the answer a moment ago (`Nothing` without it, something with it).
 pub(crate) fn band_choice(
     values: &[[Option<i64>; COL_BANDS]; 2],
     (above, upper_band_sides): ([bool; ROW_BANDS], usize),
@@ -1312,10 +1358,11 @@ pub(crate) fn band_choice(
         || (n == 2 * COL_BANDS && bands_agree(lo, hi))
         || wide_upper_motion(above, upper_band_sides, values, (lo, hi));
     // All values the other way from the answer a moment ago (a reversal), or one way while
-    // the answer is fresh.
-    let after_answer = recent_motion.is_some_and(|r| {
-        let reversed = if r.negative { lo > 0 } else { hi < 0 };
-        reversed || (r.fresh && one_sign(lo, hi))
+    // the answer is fresh, once the readout has paused.
+    let paused = recent_motion.filter(RecentAnswer::paused);
+    let after_answer = paused.is_some_and(|r| {
+        let reversed = if r.negative() { lo > 0 } else { hi < 0 };
+        reversed || (r.fresh() && one_sign(lo, hi))
     });
     let above_ok = above_own || after_answer;
     let bands = values.map(|side| side.map(|v| v.is_some()));
@@ -1329,11 +1376,18 @@ pub(crate) fn band_choice(
         };
     }
     let spread_own = spread_is_rotation(bands, support, coverage);
-    let on_both_sides_after_answer = recent_motion.is_some()
-        && one_sign(lo, hi)
-        && bands.iter().all(|side| side.contains(&true));
+    let on_both_sides_after_answer =
+        paused.is_some() && one_sign(lo, hi) && bands.iter().all(|side| side.contains(&true));
+    // The same way as the answer a moment ago, spread as a rotation's over the columns and
+    // over the rows above short of the top band: the turn goes on (people walking on past a
+    // drone that stopped turning read at a rate of their own, [`RecentAnswer::continued_by`]).
+    let continuing = recent_motion.is_some_and(|r| if r.negative() { hi < 0 } else { lo > 0 })
+        && spread_own
+        && rows_above_with_values(above, coverage) >= ABOVE_SUPPORT as usize;
     if above_ok && (spread_own || on_both_sides_after_answer) {
         (BandChoice::Pairs, !(above_own && spread_own))
+    } else if continuing {
+        (BandChoice::Continuing, true)
     } else {
         (BandChoice::Nothing, false)
     }
@@ -1378,9 +1432,22 @@ fn range_of(values: impl Iterator<Item = i64>) -> (usize, i64, i64) {
 /// the layout has no row above the principal point.
 fn above_is_rotation(above: [bool; ROW_BANDS], coverage: Coverage) -> bool {
     let reach = usize::from(coverage.above_bands).min(ROW_BANDS);
-    let above = above.get(..reach).unwrap_or(&[]);
     let above_need = (ABOVE_SUPPORT as usize).min(reach);
-    above.iter().filter(|&&f| f).count() >= above_need && above.last().copied().unwrap_or(true)
+    rows_above_with_values(above, coverage) >= above_need
+        && above
+            .get(..reach)
+            .and_then(<[bool]>::last)
+            .copied()
+            .unwrap_or(true)
+}
+
+/// How many of the row bands the layout reaches above the principal row (`above[row]`) have
+/// values.
+fn rows_above_with_values(above: [bool; ROW_BANDS], coverage: Coverage) -> usize {
+    let reach = usize::from(coverage.above_bands).min(ROW_BANDS);
+    above
+        .get(..reach)
+        .map_or(0, |a| a.iter().filter(|&&f| f).count())
 }
 
 /// Whether the motion above the principal row is as wide as only a rotation's: values in at
@@ -1490,7 +1557,13 @@ mod tests {
 
     /// The readout's answer a moment ago: its sign (`true`: negative) and whether it is fresh.
     fn recent(negative: bool, fresh: bool) -> Option<RecentAnswer> {
-        Some(RecentAnswer { negative, fresh })
+        let readings = if fresh {
+            1
+        } else {
+            crate::readout::shared::FRESH_READINGS + 1
+        };
+        let rate_q16 = if negative { -1 << 16 } else { 1 << 16 };
+        Some(RecentAnswer { rate_q16, readings })
     }
 
     /// A DAVIS346-like field (346 x 260, f = 226 px, principal point at the centre), all four
@@ -2016,6 +2089,58 @@ mod tests {
                 f.age();
             }
             assert_answer(&f, answers, (0.285, 0.05), &("recent", recent));
+        }
+    }
+
+    #[test]
+    fn a_turn_goes_on_when_its_texture_leaves_the_top_row_band() {
+        // A turn at about 0.29 rad/s with every column band side moving below the principal
+        // row and in the two lower row bands above it, none in the top one (sky came into
+        // view), the left outer band read low (the outer half more than a tenth slower than
+        // the inner: not `wide_upper_motion`). On its own evidence that is no rotation; it
+        // continues an answer a moment ago of that sign and about that rate (within a fifth),
+        // whether the last reading answered or not, but not one of another rate or sign, nor
+        // with one row band above the principal row alone.
+        let rate = |side: usize, band: usize| match (side, band) {
+            (0, 3) => 120,
+            _ => [300, 280, 320, 290][(band + side) % 4],
+        };
+        let answer = |milli: i32, readings: u8| {
+            Some(RecentAnswer {
+                rate_q16: milli * 65_536 / 1_000,
+                readings,
+            })
+        };
+        for (recent, rows_above, answers) in [
+            (None, 2, false),
+            (answer(290, 0), 2, true),
+            (
+                answer(290, crate::readout::shared::RECENT_READINGS),
+                2,
+                true,
+            ),
+            (answer(260, 3), 2, true),
+            (answer(400, 0), 2, false),
+            (answer(-290, 0), 2, false),
+            (answer(290, 0), 1, false),
+        ] {
+            let mut f = field();
+            f.set_recent_motion(recent);
+            for _ in 0..30 {
+                for (side, band, _) in all_bands(|_, _| 0) {
+                    let r = rate(side, band);
+                    for (up, rows) in [(false, 0..ROW_BANDS), (true, 0..rows_above)] {
+                        for row in rows {
+                            let (x, y) = pixel(side, band, up, row);
+                            for _ in 0..2 {
+                                f.add(Population::Fast, x, y, log2_rate(r), true);
+                            }
+                        }
+                    }
+                }
+                f.age();
+            }
+            assert_answer(&f, answers, (0.29, 0.03), &("recent", recent, rows_above));
         }
     }
 

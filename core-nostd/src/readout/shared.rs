@@ -46,7 +46,7 @@ pub const RESUME_READINGS: u8 = 3;
 pub const ESTABLISHED_READINGS: u8 = 25;
 
 /// Readings (of [`REFRESH_US`] each) after the last answer within which the motion counts as
-/// recent ([`AnswerAge::moved_recently`]): 100 ms at 1 kHz.
+/// recent ([`AnswerAge::last_answer`]): 100 ms at 1 kHz.
 pub const RECENT_READINGS: u8 = 25;
 
 /// Readings (of [`REFRESH_US`] each) after the last answer within which it is fresh
@@ -146,26 +146,27 @@ impl Confirmation {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AnswerAge {
     readings: u8,
-    negative: bool,
+    /// The last answer (Q16 rad/s).
+    rate_q16: i32,
 }
 
 impl Default for AnswerAge {
     fn default() -> Self {
         Self {
             readings: u8::MAX,
-            negative: false,
+            rate_q16: 0,
         }
     }
 }
 
 impl AnswerAge {
-    /// After one reading: `Some(negative)` when it was output on the field's own evidence,
-    /// a rotation of that sign; `None` otherwise.
-    pub fn after(&mut self, answered: Option<bool>) {
+    /// After one reading: `Some(rate)` (Q16 rad/s) when it was output on the field's own
+    /// evidence, a rotation at that rate; `None` otherwise.
+    pub fn after(&mut self, answered: Option<i32>) {
         *self = match answered {
-            Some(negative) => Self {
+            Some(rate_q16) => Self {
                 readings: 0,
-                negative,
+                rate_q16,
             },
             None => Self {
                 readings: self.readings.saturating_add(1),
@@ -174,15 +175,15 @@ impl AnswerAge {
         };
     }
 
-    /// The last answer when the readout does not answer now but did within
-    /// [`RECENT_READINGS`] readings: the camera was turning a moment ago (a reversal, a turn
-    /// slowing through the paper's units' floor), not standing still.
-    pub fn moved_recently(&self) -> Option<RecentAnswer> {
-        (1..=RECENT_READINGS)
+    /// The last answer, when it came within [`RECENT_READINGS`] readings (0: the last reading
+    /// answered): the camera was turning a moment ago (a reversal, a turn slowing through the
+    /// paper's units' floor, a turn whose texture left the top row band), not standing still.
+    pub fn last_answer(&self) -> Option<RecentAnswer> {
+        (0..=RECENT_READINGS)
             .contains(&self.readings)
             .then_some(RecentAnswer {
-                negative: self.negative,
-                fresh: self.readings <= FRESH_READINGS,
+                rate_q16: self.rate_q16,
+                readings: self.readings,
             })
     }
 }
@@ -197,11 +198,11 @@ pub struct Answers {
 }
 
 impl Answers {
-    /// Takes one reading (`Some(negative)`: a rotation of that sign; `None`: no evidence),
-    /// which needed the answer a moment ago or not ([`FieldReading::recent_needed`]), and
-    /// says whether it is output.
-    pub fn read(&mut self, reading: Option<bool>, recent_needed: bool) -> bool {
-        let answered = self.confirmation.read(reading);
+    /// Takes one reading (`Some(rate)`, Q16 rad/s: a rotation; `None`: no evidence), which
+    /// needed the answer a moment ago or not ([`FieldReading::recent_needed`]), and says
+    /// whether it is output.
+    pub fn read(&mut self, reading: Option<i32>, recent_needed: bool) -> bool {
+        let answered = self.confirmation.read(reading.map(|v| v < 0));
         self.age
             .after(reading.filter(|_| answered && !recent_needed));
         answered
@@ -217,9 +218,9 @@ impl Answers {
         self.confirmation.established()
     }
 
-    /// See [`AnswerAge::moved_recently`].
-    pub fn moved_recently(&self) -> Option<RecentAnswer> {
-        self.age.moved_recently()
+    /// See [`AnswerAge::last_answer`].
+    pub fn last_answer(&self) -> Option<RecentAnswer> {
+        self.age.last_answer()
     }
 }
 
@@ -417,7 +418,7 @@ impl OutputGate {
         // over one period); the outputs between repeat the last reading.
         if self.phase == 0 {
             field.set_direction_established(self.answers.established());
-            field.set_recent_motion(self.answers.moved_recently());
+            field.set_recent_motion(self.answers.last_answer());
             self.read(field.reading());
         }
         self.phase += 1;
@@ -456,7 +457,7 @@ impl OutputGate {
             FieldEstimate::NoEvidence => None,
         };
         self.answers
-            .read(reading.map(|v| v < I16F16::ZERO), field.recent_needed);
+            .read(reading.map(I16F16::to_bits), field.recent_needed);
         self.value = reading.unwrap_or(I16F16::ZERO);
     }
 }
@@ -521,47 +522,51 @@ mod tests {
         // Never answered: nothing recent, however long it waits.
         for _ in 0..300 {
             age.after(None);
-            assert_eq!(age.moved_recently(), None);
+            assert_eq!(age.last_answer(), None);
         }
-        age.after(Some(true));
-        assert_eq!(age.moved_recently(), None, "answering");
+        age.after(Some(-1 << 15));
+        let answering = RecentAnswer {
+            rate_q16: -1 << 15,
+            readings: 0,
+        };
+        assert_eq!(age.last_answer(), Some(answering));
         for k in 1..=RECENT_READINGS {
             age.after(None);
             let recent = RecentAnswer {
-                negative: true,
-                fresh: k <= FRESH_READINGS,
+                rate_q16: -1 << 15,
+                readings: k,
             };
-            assert_eq!(age.moved_recently(), Some(recent), "reading {k}");
+            assert_eq!(age.last_answer(), Some(recent), "reading {k}");
         }
         age.after(None);
-        assert_eq!(age.moved_recently(), None);
+        assert_eq!(age.last_answer(), None);
         // Through the gates' rule: after a pause in the answers, a reading of the other sign
         // is held back, and the motion is still recent, the other way (a reversal).
         let mut a = Answers::default();
-        for reading in [Some(false), Some(false), None, Some(true)] {
+        for reading in [Some(1 << 16), Some(1 << 15), None, Some(-1 << 16)] {
             a.read(reading, false);
         }
         assert_eq!(a.confirmation, Confirmation::Held { negative: true });
-        assert_eq!(a.moved_recently().map(|r| r.negative), Some(false));
+        assert_eq!(a.last_answer().map(|r| r.rate_q16), Some(1 << 15));
         // Answers that needed the motion to be recent are output, but do not make it recent
         // again: it ends RECENT_READINGS after the last answer on the field's own evidence.
         let mut a = Answers::default();
         for _ in 0..2 {
-            a.read(Some(false), false);
+            a.read(Some(1 << 16), false);
         }
         for k in 1..=RECENT_READINGS {
             // In turns: "no evidence", then a rotation that needed the motion to be recent.
             let needed = k % 2 == 0;
             assert_eq!(
-                a.read(needed.then_some(false), needed),
+                a.read(needed.then_some(1 << 16), needed),
                 needed,
                 "reading {k}"
             );
-            assert!(a.moved_recently().is_some(), "reading {k}");
+            assert!(a.last_answer().is_some(), "reading {k}");
         }
-        a.read(Some(false), true);
+        a.read(Some(1 << 16), true);
         assert!(a.answering());
-        assert_eq!(a.moved_recently(), None, "{a:?}");
+        assert_eq!(a.last_answer(), None, "{a:?}");
     }
 
     #[test]
