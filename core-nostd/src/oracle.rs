@@ -952,17 +952,18 @@ struct SpikeTarget<'t, L: crate::layout::Layout> {
     stride: &'t mut OracleStrideChoice,
     near_floor_s: f64,
     samples: &'t mut u64,
-    /// For the layout's paper's units beside near units: the near units' decoder state.
-    near: Option<NearView<'t>>,
+    /// For the paper's units beside near units: the other network's decoder state (the near
+    /// units' for the layout's units, the layout's for the near units).
+    peer: Option<PeerView<'t>>,
     /// The other population of the paper's units' decoded onsets (the near units' for the
     /// layout's, the layout's for the near units'), for the vertical neighbours.
     other_onsets: Option<&'t [DecodedOnset]>,
 }
 
-/// What the layout's units read of the near units' decoding (see
-/// [`crate::readout::spikes`], "Near units"): per cell the last decoded onset and each unit's
-/// decoded drive for it.
-struct NearView<'t> {
+/// What one network of the paper's units reads of the other's decoding beside it (the layout's
+/// units of the near units', the near units of the layout's; see [`crate::readout::spikes`],
+/// "Near units"): per cell the last decoded onset and each unit's decoded drive for it.
+struct PeerView<'t> {
     onsets: &'t [Option<(f64, f64, bool)>],
     decodes: &'t [[(Option<f64>, bool); 2]],
     /// The share of its ceiling above which a near unit's drive is not read.
@@ -970,22 +971,30 @@ struct NearView<'t> {
     w_trg: f64,
 }
 
-impl NearView<'_> {
+impl PeerView<'_> {
+    /// The share of its ceiling of the drive with which unit `u` of `cell` decoded the onset
+    /// at `t_trg`, if it did.
+    fn decoded_share(&self, cell: usize, u: usize, t_trg: f64) -> Option<f64> {
+        let (t0, own, _) = self.onsets.get(cell).copied().flatten()?;
+        let d = self.decodes.get(cell)?.get(u)?.0?;
+        ((t_trg - t0).abs() <= SAME_ONSET_F64).then(|| d / (self.w_trg * own))
+    }
+
     /// Whether near unit `u` of `cell` decoded the onset at `t_trg` above its share of the
     /// ceiling: an edge the near units cannot time.
     fn decoded_at_ceiling(&self, cell: usize, u: usize, t_trg: f64) -> bool {
-        let Some((t0, own, _)) = self.onsets.get(cell).copied().flatten() else {
-            return false;
-        };
-        let d = self
-            .decodes
-            .get(cell)
-            .and_then(|dd| dd.get(u))
-            .and_then(|e| e.0);
-        match d {
-            Some(d) if (t_trg - t0).abs() <= SAME_ONSET_F64 => d > self.share * self.w_trg * own,
-            _ => false,
-        }
+        self.decoded_share(cell, u, t_trg)
+            .is_some_and(|share| share > self.share)
+    }
+
+    /// Whether layout unit `u` of `cell` decoded the onset at `t_trg` as crossing its `stride`
+    /// faster than a near unit read one pixel at `near_share` of its ceiling, and quickly
+    /// enough to overrule it (the fixed-point readout's `SpikeCell::overrules`).
+    fn overrules(&self, cell: usize, u: usize, t_trg: f64, near_share: f64, stride: f64) -> bool {
+        let floors = f64::from(crate::readout::spikes::OVERRULING_FLOORS);
+        let quick = self.share.powf(floors * stride);
+        self.decoded_share(cell, u, t_trg)
+            .is_some_and(|share| share > near_share && share > quick)
     }
 }
 
@@ -1147,13 +1156,17 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
                 .find(|q| q.fast_reach_s.is_none() && q.near != pop.near)
                 .map(|q| &q.onsets[..])
         };
-        let near = if pop.fast_reach_s.is_none() && !pop.near {
-            tail.iter().find(|q| q.near).map(|q| NearView {
-                onsets: &q.onsets,
-                decodes: &q.decodes,
-                share: (f64::from(crate::readout::spikes::NEAR_DRIVE_SHARE_LOG2) / 65_536.0).exp2(),
-                w_trg: q.p.w_trg,
-            })
+        let peer = if pop.fast_reach_s.is_none() {
+            head.iter()
+                .chain(tail.iter())
+                .find(|q| q.fast_reach_s.is_none() && q.near != pop.near)
+                .map(|q| PeerView {
+                    onsets: &q.onsets,
+                    decodes: &q.decodes,
+                    share: (f64::from(crate::readout::spikes::NEAR_DRIVE_SHARE_LOG2) / 65_536.0)
+                        .exp2(),
+                    w_trg: q.p.w_trg,
+                })
         } else {
             None
         };
@@ -1172,7 +1185,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             stride: &mut self.stride,
             near_floor_s: self.near_floor_s,
             samples: &mut self.samples,
-            near,
+            peer,
             other_onsets,
         };
         f(pop, &mut target);
@@ -1521,11 +1534,18 @@ impl SpikePopulation {
                 }
                 let read = match (near_chosen, self.near) {
                     (false, near) => (!near).then_some(dt_s),
-                    (true, true) => (dt_s >= target.near_floor_s).then_some(dt_s),
+                    // Not where the layout's unit overrules it (as the fixed-point readout).
+                    (true, true) => {
+                        let overruled = target
+                            .peer
+                            .as_ref()
+                            .is_some_and(|n| n.overrules(cell, u, t_trg, ratio, stride));
+                        (dt_s >= target.near_floor_s && !overruled).then_some(dt_s)
+                    }
                     // One stride times each onset: the layout's units those the near units
                     // decoded at their ceiling, no slower than their floor.
                     (true, false) => target
-                        .near
+                        .peer
                         .as_ref()
                         .is_some_and(|n| n.decoded_at_ceiling(cell, u, t_trg))
                         .then(|| dt_s.min(stride * target.near_floor_s)),

@@ -68,7 +68,11 @@
 //! that floor added a second decode to onsets the near units had timed already, from the fast
 //! tail of the layout's decodes: on drone seed 3, 162 k of them while |w| >= 0.6 rad/s, 109 k
 //! now.) The slow units' reach grows by the stride when the near units are read (one pixel in
-//! 54 ms is two in 108 ms at stride 2).
+//! 54 ms is two in 108 ms at stride 2). Nor is a near decode read where the layout's unit
+//! facing the same way timed the same onset over its stride faster than the near unit over
+//! one pixel, and quickly ([`OVERRULING_FLOORS`]): the near unit's FAC pixel missed that edge,
+//! and its decode times an earlier one (drone seed 304, 1.8 rad/s: 13.4 → 11.6 % RMSE / peak;
+//! `SpikeCell::overrules`).
 //!
 //! Causal: the network hands a spike at `t` over by the first output time at or after `t`,
 //! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
@@ -155,6 +159,13 @@ use crate::unit::{div_u64, Kernel};
 /// two pixels in under twice that time, and the layout's units time them instead (the onsets
 /// a near unit decoded above this share; see the module documentation, "Near units").
 pub const NEAR_DRIVE_SHARE_LOG2: i32 = -9962;
+
+/// How many near-unit floors per pixel of its stride a layout unit's crossing may take, at
+/// most, to overrule a near unit's slower decode of the same onset (`SpikeCell::overrules`):
+/// 4.2 ms per pixel for the paper's units, 8.4 ms over a stride of 2. Slower, the layout's
+/// units time edges near the end of their window, where they alias (a hover's slow turns), and
+/// the near decode is the one to keep.
+pub const OVERRULING_FLOORS: i32 = 2;
 
 /// `log2(e)` in Q32.
 const LOG2E_Q32: u64 = 6_196_328_019;
@@ -362,17 +373,46 @@ impl SpikeCell {
     /// [`SAME_ONSET_US`]) with a drive above [`NEAR_DRIVE_SHARE_LOG2`] of the pixel's ceiling
     /// (`log2_w_trg`: `log2(w_T)`, Q16.16): for the near units, an edge they cannot time.
     fn decoded_at_ceiling(&self, t_trg: u32, u: usize, log2_w_trg: i32) -> bool {
+        self.decoded_share(t_trg, u, log2_w_trg)
+            .is_some_and(|share| share > NEAR_DRIVE_SHARE_LOG2)
+    }
+
+    /// `log2` (Q16.16) of the share of the pixel's ceiling (`w_T` times its own trace;
+    /// `log2_w_trg`: `log2(w_T)`) of the drive with which unit `u` decoded the onset at `t_trg`
+    /// (the same TRG event, within [`SAME_ONSET_US`]), if it did.
+    fn decoded_share(&self, t_trg: u32, u: usize, log2_w_trg: i32) -> Option<i32> {
         let (Some(t0), Some(&l2d)) = (self.t_onset(), self.l2d.get(u)) else {
-            return false;
+            return None;
         };
         let apart = (t_trg.wrapping_sub(t0) as i32).unsigned_abs();
         if l2d == i16::MIN || apart > SAME_ONSET_US + 8 {
-            return false;
+            return None;
         }
-        let share = l2_unpack(l2d)
-            .saturating_sub(log2_w_trg)
-            .saturating_sub(log2_q16(u64::from(self.own().to_bits()), 27));
-        share > NEAR_DRIVE_SHARE_LOG2
+        Some(
+            l2_unpack(l2d)
+                .saturating_sub(log2_w_trg)
+                .saturating_sub(log2_q16(u64::from(self.own().to_bits()), 27)),
+        )
+    }
+
+    /// Whether this cell's layout unit `u` decoded the onset at `t_trg` as crossing its
+    /// `stride` faster than the near unit facing the same way read one pixel (`near_share`: the
+    /// near decode's `log2` share of its ceiling, Q16.16), and within [`OVERRULING_FLOORS`]
+    /// near floors per pixel: the near unit's FAC pixel then missed this edge (an onset merged
+    /// into its previous run), and its decode times an earlier one. On fast turns over dense
+    /// texture those decodes read a fifth of the turn and sank whole regions (drone seed 304
+    /// at 1.8 rad/s: the upper regions of the right outer band 0.36 rad/s).
+    fn overrules(
+        &self,
+        t_trg: u32,
+        u: usize,
+        log2_w_trg: i32,
+        near_share: i32,
+        stride: u16,
+    ) -> bool {
+        let quick = NEAR_DRIVE_SHARE_LOG2.saturating_mul(OVERRULING_FLOORS * i32::from(stride));
+        self.decoded_share(t_trg, u, log2_w_trg)
+            .is_some_and(|share| share > near_share && share > quick)
     }
 
     /// Whether the onset before the last came within the busy window before it.
@@ -1072,8 +1112,14 @@ impl<'a> Decoding<'a> {
                 let read = match (chosen, self.stride) {
                     (Stride::Layout, Stride::Layout) => Some(l2dt),
                     (Stride::Layout, Stride::Near) => None,
+                    // Not where the layout's unit facing the same way timed the same onset over
+                    // its stride faster than this one over a pixel (`SpikeCell::overrules`).
                     (Stride::Near, Stride::Near) => {
-                        (l2dt >= target.near_floor_log2_s).then_some(l2dt)
+                        let stride = target.layout.stride();
+                        let overruled = other
+                            .and_then(|n| n.get(cell))
+                            .is_some_and(|n| n.overrules(t_trg, u, target.log2_w_trg, l, stride));
+                        (l2dt >= target.near_floor_log2_s && !overruled).then_some(l2dt)
                     }
                     // The onsets the near units decoded at their ceiling, whatever the layout's
                     // units read: one stride times each onset. Such an onset crossed one pixel
