@@ -440,6 +440,16 @@ pub enum FieldEstimate {
     NoEvidence,
 }
 
+/// Readings (of [`crate::readout::shared::REFRESH_US`] each) after the last answer within
+/// which it is fresh ([`RecentAnswer::fresh`]): 24 ms at 1 kHz. Within them the field reads
+/// band values the same way as that answer without the rows above the principal row (faint
+/// upper scenery drops out for a reading or two: rotation seed 73 at half contrast 34.6 →
+/// 31.5 % of peak); later, only the other way (a reversal) or at that answer's rate
+/// ([`RecentAnswer::continued_by`]): a turn that faded for longer may have stopped, and people
+/// walking on past the drone move the same way (hover seed 501 with three people 36.4 → 17.8
+/// %; 23.5 % at 100 ms, 16.2 % with none).
+pub const FRESH_READINGS: u8 = 6;
+
 /// The readout's last answer on the field's own evidence, when it came a moment ago
 /// ([`crate::readout::shared::AnswerAge::last_answer`]; [`Field::set_recent_motion`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -462,10 +472,9 @@ impl RecentAnswer {
         self.readings > 0
     }
 
-    /// Whether the readout has paused since for at most
-    /// [`crate::readout::shared::FRESH_READINGS`] readings.
+    /// Whether the readout has paused since for at most [`FRESH_READINGS`] readings.
     pub fn fresh(&self) -> bool {
-        self.paused() && self.readings <= crate::readout::shared::FRESH_READINGS
+        self.paused() && self.readings <= FRESH_READINGS
     }
 
     /// Whether `estimate` continues it: a rotation within `1 / BAND_SPREAD` of its rate (the
@@ -1557,11 +1566,7 @@ mod tests {
 
     /// The readout's answer a moment ago: its sign (`true`: negative) and whether it is fresh.
     fn recent(negative: bool, fresh: bool) -> Option<RecentAnswer> {
-        let readings = if fresh {
-            1
-        } else {
-            crate::readout::shared::FRESH_READINGS + 1
-        };
+        let readings = if fresh { 1 } else { FRESH_READINGS + 1 };
         let rate_q16 = if negative { -1 << 16 } else { 1 << 16 };
         Some(RecentAnswer { rate_q16, readings })
     }
@@ -2114,11 +2119,8 @@ mod tests {
         for (recent, rows_above, answers) in [
             (None, 2, false),
             (answer(290, 0), 2, true),
-            (
-                answer(290, crate::readout::shared::RECENT_READINGS),
-                2,
-                true,
-            ),
+            // The last reading of `shared::RECENT_READINGS` (25).
+            (answer(290, 25), 2, true),
             (answer(260, 3), 2, true),
             (answer(400, 0), 2, false),
             (answer(-290, 0), 2, false),

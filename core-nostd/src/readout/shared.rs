@@ -49,14 +49,7 @@ pub const ESTABLISHED_READINGS: u8 = 25;
 /// recent ([`AnswerAge::last_answer`]): 100 ms at 1 kHz.
 pub const RECENT_READINGS: u8 = 25;
 
-/// Readings (of [`REFRESH_US`] each) after the last answer within which it is fresh
-/// ([`RecentAnswer::fresh`]): 24 ms at 1 kHz. Within them the field reads band values the
-/// same way as that answer without the rows above the principal row (faint upper scenery
-/// drops out for a reading or two: rotation seed 73 at half contrast 34.6 → 31.5 % of peak);
-/// later, only the other way (a reversal): a turn that faded for longer may have stopped, and
-/// people walking on past the drone move the same way (hover seed 501 with three people
-/// 36.4 → 17.8 %; 23.5 % at 100 ms, 16.2 % with none).
-pub const FRESH_READINGS: u8 = 6;
+pub use super::field::FRESH_READINGS;
 
 /// Whether a reading of the field that shows a rotation is output, from the readings before
 /// it (one rule for [`OutputGate`] and the f64 oracle's gate). A rotation read right after "no
