@@ -1536,11 +1536,13 @@ impl SpikePopulation {
                     (false, near) => (!near).then_some(dt_s),
                     // Not where the layout's unit overrules it (as the fixed-point readout).
                     (true, true) => {
-                        let overruled = target
-                            .peer
-                            .as_ref()
-                            .is_some_and(|n| n.overrules(cell, u, t_trg, ratio, stride));
-                        (dt_s >= target.near_floor_s && !overruled).then_some(dt_s)
+                        let overruled = || {
+                            target
+                                .peer
+                                .as_ref()
+                                .is_some_and(|n| n.overrules(cell, u, t_trg, ratio, stride))
+                        };
+                        (dt_s >= target.near_floor_s && !overruled()).then_some(dt_s)
                     }
                     // One stride times each onset: the layout's units those the near units
                     // decoded at their ceiling, no slower than their floor.
@@ -1967,10 +1969,11 @@ impl OracleField {
             .or(values.last())
             .map(|v| v.0.clamp(-20.0, 20.0));
         match to_continue {
-            // Within `1 / BAND_SPREAD` of the answer a moment ago (the fixed-point rule).
+            // The fixed-point rule, on the median in its units (Q16 rad/s).
             Some(r) => median.filter(|&m| {
-                let rate = f64::from(r.rate_q16) / 65536.0;
-                (m - rate).abs() * crate::readout::field::BAND_SPREAD as f64 <= rate.abs()
+                r.continued_by(crate::readout::field::FieldEstimate::Rotation(
+                    (m * 65536.0) as i32,
+                ))
             }),
             None => median,
         }

@@ -1369,10 +1369,8 @@ pub(crate) fn band_choice(
     // All values the other way from the answer a moment ago (a reversal), or one way while
     // the answer is fresh, once the readout has paused.
     let paused = recent_motion.filter(RecentAnswer::paused);
-    let after_answer = paused.is_some_and(|r| {
-        let reversed = if r.negative() { lo > 0 } else { hi < 0 };
-        reversed || (r.fresh() && one_sign(lo, hi))
-    });
+    let after_answer = paused
+        .is_some_and(|r| all_one_way(!r.negative(), (lo, hi)) || (r.fresh() && one_sign(lo, hi)));
     let above_ok = above_own || after_answer;
     let bands = values.map(|side| side.map(|v| v.is_some()));
     if let Some(side) = lone_side(bands) {
@@ -1390,7 +1388,7 @@ pub(crate) fn band_choice(
     // The same way as the answer a moment ago, spread as a rotation's over the columns and
     // over the rows above short of the top band: the turn goes on (people walking on past a
     // drone that stopped turning read at a rate of their own, [`RecentAnswer::continued_by`]).
-    let continuing = recent_motion.is_some_and(|r| if r.negative() { hi < 0 } else { lo > 0 })
+    let continuing = recent_motion.is_some_and(|r| all_one_way(r.negative(), (lo, hi)))
         && spread_own
         && rows_above_with_values(above, coverage) >= ABOVE_SUPPORT as usize;
     if above_ok && (spread_own || on_both_sides_after_answer) {
@@ -1513,6 +1511,16 @@ fn lone_side(bands: [[bool; COL_BANDS]; 2]) -> Option<usize> {
 /// Whether values from `lo` to `hi` (the least and the greatest) all have one sign (none 0).
 fn one_sign(lo: i64, hi: i64) -> bool {
     lo > 0 || hi < 0
+}
+
+/// Whether values from `lo` to `hi` (the least and the greatest) are all negative
+/// (`negative`) or all positive.
+fn all_one_way(negative: bool, (lo, hi): (i64, i64)) -> bool {
+    if negative {
+        hi < 0
+    } else {
+        lo > 0
+    }
 }
 
 /// Whether column band values from `lo` to `hi` (any unit) agree as a rotation's: one sign,

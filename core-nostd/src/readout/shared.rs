@@ -129,8 +129,8 @@ impl Confirmation {
 }
 
 /// Readings since the readout last answered on the field's own evidence (saturating;
-/// `u8::MAX` before any), and that answer's sign: whether the motion is recent
-/// ([`RECENT_READINGS`]), and which way it went. An answer that needed the motion to be
+/// `u8::MAX` before any), and that answer's rate: whether the motion is recent
+/// ([`RECENT_READINGS`]), which way and how fast it went. An answer that needed the motion to be
 /// recent ([`FieldReading::recent_needed`]) does not make it recent again: else people
 /// walking past a drone that stopped turning, one sign on both sides of the view, kept the
 /// readout answering in turns with "no evidence" (hover seed 501 with three objects: 16.1 →

@@ -1115,11 +1115,14 @@ impl<'a> Decoding<'a> {
                     // Not where the layout's unit facing the same way timed the same onset over
                     // its stride faster than this one over a pixel (`SpikeCell::overrules`).
                     (Stride::Near, Stride::Near) => {
+                        // Looked up only for a decode that would be read.
                         let stride = target.layout.stride();
-                        let overruled = other
-                            .and_then(|n| n.get(cell))
-                            .is_some_and(|n| n.overrules(t_trg, u, target.log2_w_trg, l, stride));
-                        (l2dt >= target.near_floor_log2_s && !overruled).then_some(l2dt)
+                        let overruled = || {
+                            other.and_then(|n| n.get(cell)).is_some_and(|n| {
+                                n.overrules(t_trg, u, target.log2_w_trg, l, stride)
+                            })
+                        };
+                        (l2dt >= target.near_floor_log2_s && !overruled()).then_some(l2dt)
                     }
                     // The onsets the near units decoded at their ceiling, whatever the layout's
                     // units read: one stride times each onset. Such an onset crossed one pixel
