@@ -1981,10 +1981,15 @@ impl OracleField {
 
     /// Intercept at `Y = 0` of one column band's weighted fit on one side, and its variance:
     /// over both halves of the band, or the rows above the principal row alone where the
-    /// halves' own fits disagree (as `field::Field::column_intercept`).
+    /// halves' own fits disagree, none from the rows below alone where the field asks for
+    /// the rows above (as `field::Field::column_intercept`).
     fn column_intercept(&self, side: usize, band: usize) -> Option<(f64, f64)> {
         let sums = [0, 1].map(|v| self.half_sums(side, band, v));
         let above = oracle_fit(&sums, [true, false]);
+        let lower_alone = self.coverage.paired_bands == 0 || self.coverage.above_bands == 0;
+        if above.is_none() && !lower_alone {
+            return None;
+        }
         if let (Some((wa, va)), Some((wb, vb))) = (above, oracle_fit(&sums, [false, true])) {
             let sigmas = crate::readout::field::HALVES_DISAGREE_SIGMAS as f64;
             if (wa - wb) * (wa - wb) > sigmas * sigmas * (va + vb) {

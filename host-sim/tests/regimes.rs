@@ -469,6 +469,23 @@ fn people_walking_past_a_hovering_drone_that_turns() {
     );
 }
 
+/// Two people walk past a hovering drone (seed 631, rendered after the other rules) while it
+/// turns at up to 0.2 rad/s. Where a column band's rows above the principal row had no decode
+/// in a moment, its rows below alone gave its value, and the people's motion there outweighed
+/// the turn (34.8 % RMSE / peak, correlation 0.907; spike readout 40.0 %); now a band needs a
+/// value above the principal row (`readout::field`, `Field::column_intercept`).
+#[test]
+fn people_walking_past_a_drone_that_turns_under_a_skyline() {
+    let (f, s) = scene_with(Regime::Hover, 631, 4.0, |cfg| cfg.objects = 2);
+    check_turning(
+        "hover seed 631, two people walking past",
+        &f,
+        &s,
+        (0.93, 0.29, 0.1),
+        1.25,
+    );
+}
+
 /// A hovering drone (seed 501, rendered after the other rules) that stops turning at 1.6 s while three people walk
 /// on past it, one way on both sides of the view. When every answer the field gave right after
 /// an answer restarted the 100 ms in which band values of one sign need not reach the top row
