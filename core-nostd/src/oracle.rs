@@ -1986,7 +1986,10 @@ impl OracleField {
     fn column_intercept(&self, side: usize, band: usize) -> Option<(f64, f64)> {
         let sums = [0, 1].map(|v| self.half_sums(side, band, v));
         let above = oracle_fit(&sums, [true, false]);
-        let lower_alone = self.coverage.paired_bands == 0 || self.coverage.above_bands == 0;
+        let top = (ROWS as f64 - 0.5) * self.band.1.first().copied().unwrap_or(0.0) / self.focal;
+        let far = crate::readout::field::FAR_ROWS_Q12 as f64 / 4096.0;
+        let lower_alone =
+            self.coverage.paired_bands == 0 || self.coverage.above_bands == 0 || top < far;
         if above.is_none() && !lower_alone {
             return None;
         }
