@@ -43,9 +43,10 @@
 //!   standard deviations, the upper half's fit alone: far scenery above the horizon moves with
 //!   the rotation, while below it the ground close under a flying drone (whose flow grows
 //!   faster than linearly in `Y`) and people walking past move on their own. For the same
-//!   reason a band whose rows above have no value has none (where the layout has rows above
-//!   the principal row and mirrored bands): as a turn ends and the far scenery's decodes thin
-//!   out, people walking past below it would otherwise give the band values.
+//!   reason a band whose rows above have no value has none (where the layout has mirrored
+//!   bands and rows reaching [`FAR_ROWS_Q12`] above the principal row): as a turn ends and the
+//!   far scenery's decodes thin out, people walking past below it would otherwise give the
+//!   band values.
 //! - Every left band's intercept is paired with every right band's (up to
 //!   [`COL_BANDS`]² pairs); the output is the inverse-variance weighted median of the pairs'
 //!   means when each side has an intercept in some band, and either `support` mirrored bands
@@ -168,6 +169,7 @@ pub struct Coverage {
     /// it has none.
     pub above_bands: u8,
 }
+
 /// `|Y|` (Q12) that the centre of the top row band above the principal row must reach for the
 /// rows below alone to give a column band no value (see [`Field`]): 0.1, about
 /// 6° above the horizon. Closer to it the two halves see the same distant scenery and ground
