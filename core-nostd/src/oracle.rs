@@ -953,18 +953,16 @@ struct SpikeTarget<'t, L: crate::layout::Layout> {
     near_floor_s: f64,
     samples: &'t mut u64,
     /// For the paper's units beside near units: the other network's decoder state (the near
-    /// units' for the layout's units, the layout's for the near units).
+    /// units' for the layout's units, the layout's for the near units); its decoded onsets
+    /// also serve the vertical neighbours.
     peer: Option<PeerView<'t>>,
-    /// The other population of the paper's units' decoded onsets (the near units' for the
-    /// layout's, the layout's for the near units'), for the vertical neighbours.
-    other_onsets: Option<&'t [DecodedOnset]>,
 }
 
 /// What one network of the paper's units reads of the other's decoding beside it (the layout's
 /// units of the near units', the near units of the layout's; see [`crate::readout::spikes`],
 /// "Near units"): per cell the last decoded onset and each unit's decoded drive for it.
 struct PeerView<'t> {
-    onsets: &'t [Option<(f64, f64, bool)>],
+    onsets: &'t [DecodedOnset],
     decodes: &'t [[(Option<f64>, bool); 2]],
     /// The share of its ceiling above which a near unit's drive is not read.
     share: f64,
@@ -1139,8 +1137,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         k: usize,
         f: impl FnOnce(&mut SpikePopulation, &mut SpikeTarget<'_, L>),
     ) {
-        // The layout's paper's units read the near units' decodes (split borrow: the near
-        // units come after them).
+        // Each network of the paper's units reads the other's decodes (split borrow).
         if k >= self.pops.len() {
             return;
         }
@@ -1148,28 +1145,21 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         let Some((pop, tail)) = rest.split_first_mut() else {
             return;
         };
-        let other_onsets = if pop.fast_reach_s.is_some() {
-            None
-        } else {
+        // The paper's units' peer: the other network of the paper's units (none for the slow
+        // units).
+        let other = if pop.fast_reach_s.is_none() {
             head.iter()
                 .chain(tail.iter())
                 .find(|q| q.fast_reach_s.is_none() && q.near != pop.near)
-                .map(|q| &q.onsets[..])
-        };
-        let peer = if pop.fast_reach_s.is_none() {
-            head.iter()
-                .chain(tail.iter())
-                .find(|q| q.fast_reach_s.is_none() && q.near != pop.near)
-                .map(|q| PeerView {
-                    onsets: &q.onsets,
-                    decodes: &q.decodes,
-                    share: (f64::from(crate::readout::spikes::NEAR_DRIVE_SHARE_LOG2) / 65_536.0)
-                        .exp2(),
-                    w_trg: q.p.w_trg,
-                })
         } else {
             None
         };
+        let peer = other.map(|q| PeerView {
+            onsets: &q.onsets,
+            decodes: &q.decodes,
+            share: (f64::from(crate::readout::spikes::NEAR_DRIVE_SHARE_LOG2) / 65_536.0).exp2(),
+            w_trg: q.p.w_trg,
+        });
         // The near units' decodes go to the paper's units' field.
         let which = usize::from(pop.fast_reach_s.is_some());
         let Some(field) = self.fields.get_mut(which) else {
@@ -1186,7 +1176,6 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             near_floor_s: self.near_floor_s,
             samples: &mut self.samples,
             peer,
-            other_onsets,
         };
         f(pop, &mut target);
     }
@@ -1626,11 +1615,14 @@ impl SpikePopulation {
         let vertical = [-s, s].map(|dy| {
             let row = u16::try_from(i32::from(y) + dy).ok()?;
             let i = target.layout.cell(x, row)?;
-            let (age, own_v) = [Some(&self.onsets[..]), target.other_onsets]
-                .into_iter()
-                .flatten()
-                .filter_map(|onsets| last_before(onsets, i))
-                .min_by(|a, b| a.0.total_cmp(&b.0))?;
+            let (age, own_v) = [
+                Some(&self.onsets[..]),
+                target.peer.as_ref().map(|n| n.onsets),
+            ]
+            .into_iter()
+            .flatten()
+            .filter_map(|onsets| last_before(onsets, i))
+            .min_by(|a, b| a.0.total_cmp(&b.0))?;
             log2_to(own_v * (-age / p.tau_fac).exp(), own)
         });
         let s_h = if self.near { 1.0 } else { f64::from(s) };

@@ -1614,7 +1614,12 @@ mod tests {
     /// A DAVIS346-like field (346 x 260, f = 226 px, principal point at the centre), all four
     /// column bands mirrored, `tau_A` = 10 ms, 1 ms periods.
     fn field() -> Field {
-        let g = FieldGeometry::spanning(173 << 16, 130 << 16, 226 << 16, (0, 345), (0, 259));
+        field_over_rows((0, 259))
+    }
+
+    /// [`field`] with units on the rows `rows` alone (first, last).
+    fn field_over_rows(rows: (u16, u16)) -> Field {
+        let g = FieldGeometry::spanning(173 << 16, 130 << 16, 226 << 16, (0, 345), rows);
         let coverage = Coverage {
             paired_bands: 4,
             above_bands: 3,
@@ -1656,10 +1661,22 @@ mod tests {
     /// [`feed`] with a rate (mrad/s, signed) per half of each listed column band: `(side,
     /// band, above the principal row, below it)`.
     fn feed_halves(f: &mut Field, bands: &[(usize, usize, i64, i64)]) {
+        let mut rows = [(0, 0, None, None); 2 * COL_BANDS];
+        for (slot, &(side, band, above, below)) in rows.iter_mut().zip(bands) {
+            *slot = (side, band, Some(above), Some(below));
+        }
+        feed_rows(f, &rows[..bands.len().min(rows.len())]);
+    }
+
+    /// [`feed_halves`] with either half left without decodes (`None`).
+    fn feed_rows(f: &mut Field, bands: &[(usize, usize, Option<i64>, Option<i64>)]) {
         for _ in 0..30 {
             for &(side, band, above, below) in bands {
                 for row in 0..ROW_BANDS {
                     for (up, rate) in [(false, below), (true, above)] {
+                        let Some(rate) = rate else {
+                            continue;
+                        };
                         let (x, y) = pixel(side, band, up, row);
                         for _ in 0..2 {
                             let l2 = log2_rate(rate.unsigned_abs());
@@ -1971,46 +1988,24 @@ mod tests {
         // intercepts, the pairs' median read the people.
         // Where the field cannot ask for the rows above (no rows there), or they lie close
         // to the horizon (a 15-row strip: 0.03 f), the rows below alone still count.
-        let strip = || {
-            let g = FieldGeometry::spanning(173 << 16, 130 << 16, 226 << 16, (0, 345), (123, 137));
-            let coverage = Coverage {
-                paired_bands: 4,
-                above_bands: 3,
-            };
-            Field::new(
-                g,
-                FieldSettings::DEFAULT,
-                [10_000, 100_000],
-                1_000,
-                coverage,
-            )
-        };
+        // Bands 0 and 1 on either side: the rows below alone; band 2: both halves.
+        let bands: [(usize, usize, Option<i64>, Option<i64>); 6] = core::array::from_fn(|i| {
+            let (side, band) = (i % 2, i / 2);
+            match band {
+                2 => (side, band, Some(-80), Some(-80)),
+                _ => (side, band, None, Some(-300)),
+            }
+        });
         for (case, lower_alone) in [(0, false), (1, true), (2, true)] {
-            let mut f = if case == 2 { strip() } else { field() };
+            let mut f = match case {
+                2 => field_over_rows((123, 137)),
+                _ => field(),
+            };
             if case == 1 {
                 f.coverage.above_bands = 0;
             }
             f.set_recent_motion(recent(true, true));
-            for _ in 0..30 {
-                for side in 0..2 {
-                    for band in 0..3 {
-                        for row in 0..ROW_BANDS {
-                            let rows: &[(bool, u64)] = if band == 2 {
-                                &[(true, 80), (false, 80)]
-                            } else {
-                                &[(false, 300)]
-                            };
-                            for &(up, rate) in rows {
-                                let (x, y) = pixel(side, band, up, row);
-                                for _ in 0..2 {
-                                    f.add(Population::Fast, x, y, log2_rate(rate), false);
-                                }
-                            }
-                        }
-                    }
-                }
-                f.age();
-            }
+            feed_rows(&mut f, &bands);
             let v = rad_s(f.estimate()).expect("a rotation");
             if lower_alone {
                 assert!(v < -0.15, "case {case}: {v}");

@@ -102,8 +102,8 @@ fn agree(held: i32, rate: i32) -> bool {
 }
 
 impl Confirmation {
-    /// Takes one reading (`Some(rate)`, Q16 rad/s: a rotation; `None`: no evidence) and says
-    /// whether it is output.
+    /// Takes one reading (`Some(rate)`, Q16 rad/s: a rotation, which the field never gives as
+    /// 0; `None`: no evidence) and says whether it is output.
     pub fn read(&mut self, reading: Option<i32>) -> bool {
         let answering = |negative, readings| Self::Answering { negative, readings };
         *self = match (*self, reading) {
@@ -138,8 +138,6 @@ impl Confirmation {
     }
 
     /// Whether the last [`ESTABLISHED_READINGS`] readings in a row answered one sign.
-    ///
-    /// (A reading of 0 rad/s counts as positive: the field gives none.)
     pub fn established(&self) -> bool {
         matches!(self, Self::Answering { readings, .. } if *readings >= ESTABLISHED_READINGS)
     }

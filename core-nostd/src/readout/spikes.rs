@@ -1116,8 +1116,8 @@ impl<'a> Decoding<'a> {
                     // its stride faster than this one over a pixel (`SpikeCell::overrules`).
                     (Stride::Near, Stride::Near) => {
                         // Looked up only for a decode that would be read.
-                        let stride = target.layout.stride();
                         let overruled = || {
+                            let stride = target.layout.stride();
                             other.and_then(|n| n.get(cell)).is_some_and(|n| {
                                 n.overrules(t_trg, u, target.log2_w_trg, l, stride)
                             })
