@@ -1978,11 +1978,7 @@ impl OracleField {
     fn column_intercept(&self, side: usize, band: usize) -> Option<(f64, f64)> {
         let sums = [0, 1].map(|v| self.half_sums(side, band, v));
         let above = oracle_fit(&sums, [true, false]);
-        let top = (ROWS as f64 - 0.5) * self.band.1.first().copied().unwrap_or(0.0) / self.focal;
-        let far = crate::readout::field::FAR_ROWS_Q12 as f64 / 4096.0;
-        let lower_alone =
-            self.coverage.paired_bands == 0 || self.coverage.above_bands == 0 || top < far;
-        if above.is_none() && !lower_alone {
+        if above.is_none() && !self.lower_half_alone_counts() {
             return None;
         }
         if let (Some((wa, va)), Some((wb, vb))) = (above, oracle_fit(&sums, [false, true])) {
@@ -1992,6 +1988,23 @@ impl OracleField {
             }
         }
         oracle_fit(&sums, [true, true])
+    }
+
+    /// Whether a column band's rows below the principal row alone give it an intercept (as
+    /// `field::Field::lower_half_alone_counts`): without mirrored bands or rows above, or
+    /// where the top row band's centre lies within `FAR_ROWS_Q12` of the horizon.
+    fn lower_half_alone_counts(&self) -> bool {
+        let far = crate::readout::field::FAR_ROWS_Q12 as f64 / 4096.0;
+        self.coverage.paired_bands == 0
+            || self.coverage.above_bands == 0
+            || self.row_centre_abs(0, ROWS - 1) < far
+    }
+
+    /// `|Y|` (normalised) of the centre of row band `row` on half `v` (0 above the principal
+    /// row, 1 below).
+    fn row_centre_abs(&self, v: usize, row: usize) -> f64 {
+        let h = self.band.1.get(v).copied().unwrap_or(1.0);
+        (row as f64 + 0.5) * h / self.focal
     }
 
     /// The weighted sums `(Σ w, Σ w r, Σ w Y, Σ w Y², Σ w r Y)` of one half of a column
@@ -2004,8 +2017,7 @@ impl OracleField {
                 continue;
             };
             let w = 1.0 / var;
-            let h = self.band.1.get(v).copied().unwrap_or(1.0);
-            let y = (row as f64 + 0.5) * h / self.focal * if v == 0 { -1.0 } else { 1.0 };
+            let y = self.row_centre_abs(v, row) * if v == 0 { -1.0 } else { 1.0 };
             for (sum, term) in sums.iter_mut().zip([w, w * m, w * y, w * y * y, w * m * y]) {
                 *sum += term;
             }
