@@ -309,7 +309,17 @@ impl RunOptions {
             (Some(f), _) => f,
             (None, ReadoutChoice::Normalized) => 1.0,
             (None, ReadoutChoice::Calibrated | ReadoutChoice::Spikes) => {
-                bail!("focal length unknown: pass --focal-px (and --cx)")
+                bail!(
+                    "focal length unknown: the {}x{} px recording does not give it (no \
+                     intrinsics in its header, nor a meta.json or calib.txt beside it). Pass \
+                     --focal-px F, the focal length over the pixel pitch (a 4.5 mm lens on a \
+                     DAVIS346's 18.5 um pixels: 243), and --cx/--cy where the principal point \
+                     is not the centre ({:.1}, {:.1}); or --readout normalized, which needs none",
+                    camera.width,
+                    camera.height,
+                    camera.cx,
+                    camera.cy
+                )
             }
         };
         let layout = match (self.layout, self.window) {

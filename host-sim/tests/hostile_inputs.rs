@@ -143,6 +143,52 @@ fn number_options_out_of_range_are_one_error() {
 }
 
 #[test]
+fn a_recording_without_a_focal_length_says_what_to_pass() {
+    let d = tmp();
+    let input = d.path().join("rec.csv");
+    edge_csv(&input);
+    let out = d.path().join("yaw.csv");
+    for readout in ["calibrated", "spikes"] {
+        let o = run(args![
+            "run",
+            input,
+            "--out",
+            out,
+            "--width",
+            "64",
+            "--height",
+            "32",
+            "--readout",
+            readout
+        ]);
+        assert_fails(
+            &o,
+            &[
+                "focal length unknown",
+                "64x32",
+                "--focal-px",
+                "(31.5, 15.5)",
+            ],
+        );
+        assert!(!out.exists());
+    }
+    // The paper's readout needs none.
+    let o = run(args![
+        "run",
+        input,
+        "--out",
+        out,
+        "--width",
+        "64",
+        "--height",
+        "32",
+        "--readout",
+        "normalized"
+    ]);
+    assert_ok(&o);
+}
+
+#[test]
 fn synth_number_options_are_checked() {
     let d = tmp();
     for (flag, value) in [
