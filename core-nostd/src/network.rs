@@ -700,6 +700,14 @@ impl<'a, L: Layout> Network<'a, L> {
         self
     }
 
+    /// Moves the units' FAC pixel to one pixel from the TRG pixel (`near`, as
+    /// [`Network::near_units`]) or back to the layout's stride, for the inputs from now on (a
+    /// burst under way keeps the drive it has): the spike readout's slow units follow its
+    /// stride choice this way ([`crate::readout::Readout::slow_units_near`]).
+    pub fn set_near(&mut self, near: bool) {
+        self.stride = if near { 1 } else { self.layout.stride() };
+    }
+
     /// The kernel.
     pub fn kernel(&self) -> &Kernel {
         self.kernel

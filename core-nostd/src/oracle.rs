@@ -935,6 +935,11 @@ struct SpikePopulation {
     /// recent onset; shorter crossings, and decodes at a pixel whose previous onset came
     /// within the busy window, are theirs. `None` for the paper's units.
     fast_reach_s: Option<f64>,
+    /// The slow units' FAC pixel distance before the output time `stride_since` (µs), at
+    /// which it became `stride` (it follows the stride choice: the fixed-point readout's
+    /// `SlowFacPixel`).
+    stride_before: i32,
+    stride_since: f64,
 }
 
 /// A pixel's last decoded onset in a [`SpikePopulation`]: `(time, own trace after it, whether
@@ -1124,6 +1129,18 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
                 self.with_population(k, |pop, target| pop.settle(target, next));
             }
             self.stride.age(self.period);
+            // The slow units read the chosen stride's FAC pixel from here on.
+            let near = self.pops.len() > 2 && self.stride.near;
+            let px = if near {
+                1
+            } else {
+                i32::from(self.layout.stride())
+            };
+            if let Some(slow) = self.pops.get_mut(1).filter(|s| s.stride != px) {
+                slow.stride_before = slow.stride;
+                slow.stride = px;
+                slow.stride_since = next;
+            }
             let value = self.gate.output(&mut self.fields, self.twins);
             out.push(sample(next, self.last_event, value));
             next += self.period;
@@ -1198,6 +1215,17 @@ impl SpikePopulation {
             decodes: std::vec![[(None, false); 2]; n],
             waiting: std::collections::VecDeque::new(),
             fast_reach_s: None,
+            stride_before: stride,
+            stride_since: f64::NEG_INFINITY,
+        }
+    }
+
+    /// The FAC pixel distance (px) a TRG event at `t` (µs) was timed over.
+    fn stride_at(&self, t: f64) -> i32 {
+        if t > self.stride_since {
+            self.stride
+        } else {
+            self.stride_before
         }
     }
 
@@ -1500,16 +1528,19 @@ impl SpikePopulation {
         let near_chosen = target.stride.near;
         // The layout's units take `stride` times as long as the near units over one pixel.
         let stride = f64::from(target.layout.stride());
+        // The distance (px) this input was timed over.
+        let over = f64::from(self.stride_at(t_trg));
         // The crossing time read (as the fixed readout: the near units' floor bounds the
         // layout's decode of an onset they decoded at their ceiling).
         let dt_s = match self.fast_reach_s {
             Some(reach) => {
-                let reach = if near_chosen { stride * reach } else { reach };
+                // The chosen stride's paper's units' reach, over the distance `over`.
+                let reach = reach * over / if near_chosen { 1.0 } else { stride };
                 if busy || dt_s <= reach {
                     // The paper's units time this edge; within an octave of their reach it
                     // lies beyond the slow units' floor.
                     if !busy && dt_s >= reach / 2.0 {
-                        let floor = f64::from(self.stride) / (reach * g);
+                        let floor = over / (reach * g);
                         target.field.add_beyond_floor(x, y, u == 1, floor);
                     }
                     return true;
@@ -1550,7 +1581,7 @@ impl SpikePopulation {
                 dt_s
             }
         };
-        let w = f64::from(self.stride) / (dt_s * g);
+        let w = over / (dt_s * g);
         target.field.add(x, y, if u == 1 { w } else { -w });
         *target.samples += 1;
         true

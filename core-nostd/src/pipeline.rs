@@ -206,6 +206,11 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
             self.net.tick(next.as_us(), &mut self.readout);
             self.each_side(|net, sink| net.tick(next.as_us(), sink));
             let (yaw_rate, mut f) = self.readout.output(next.as_us());
+            if R::SLOW_UNITS {
+                if let Some(net) = self.sides.slow.as_mut() {
+                    net.set_near(self.readout.slow_units_near());
+                }
+            }
             if next.elapsed_since(self.last_event) > STALE_AFTER_US {
                 f |= flags::STALE;
             }

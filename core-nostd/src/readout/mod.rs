@@ -58,6 +58,13 @@ pub trait Readout: NetSink {
     /// [`Readout::side_spikes`].
     const NEAR_UNITS: bool = false;
 
+    /// With [`Readout::SLOW_UNITS`]: whether the slow units' network reads its FAC pixel one
+    /// pixel from the TRG pixel (else at the layout's stride) for the events after the output
+    /// just made; the pipeline asks after each output ([`crate::network::Network::set_near`]).
+    fn slow_units_near(&self) -> bool {
+        false
+    }
+
     /// A run of spikes of one unit of the `side` network (as [`NetSink::spikes`] for the main
     /// network).
     fn side_spikes(&mut self, _side: Side, _cell: u32, _dir: Dir, _times: &[u32]) {}

@@ -46,7 +46,11 @@
 //! decodes: a slow decode counts only when the crossing it times is longer than the paper's
 //! units reach at a pixel without a recent onset (`tau_F ln(w_T w_F / D_min)`, 54 ms), and
 //! when the pixel's previous decoded onset came more than `tau_F ln 10` (46 ms: the paper's
-//! units' FAC trace is down to a tenth) before it.
+//! units' FAC trace is down to a tenth) before it. Their FAC pixel follows the choice between
+//! the near units and the layout's (below), as the calibrated readout reads its slow traces:
+//! one pixel from the TRG pixel while the near units are chosen, at the layout's stride
+//! otherwise ([`crate::network::Network::set_near`]), so that they time, over the same distance, the crossings the
+//! chosen units are too fast for.
 //!
 //! # Near units
 //! As the calibrated readout, the spike readout reads near units where the layout has them:
@@ -67,8 +71,9 @@
 //! (drone seed 1: 10.0 → 9.3 % RMSE / peak with the clamp, seed 61 9.7 → 8.2 %). (Reading the layout's units for every crossing of the stride under `stride` times
 //! that floor added a second decode to onsets the near units had timed already, from the fast
 //! tail of the layout's decodes: on drone seed 3, 162 k of them while |w| >= 0.6 rad/s, 109 k
-//! now.) The slow units' reach grows by the stride when the near units are read (one pixel in
-//! 54 ms is two in 108 ms at stride 2). Nor is a near decode read where the layout's unit
+//! now.) The slow units read over the chosen stride's distance; a decode of an input timed
+//! over the other one (just before the choice changed) compares with the chosen units' reach
+//! over its own distance (one pixel in 54 ms is two in 108 ms at stride 2). Nor is a near decode read where the layout's unit
 //! facing the same way timed the same onset over its stride faster than the near unit over
 //! one pixel, and quickly ([`OVERRULING_FLOORS`]): the near unit's FAC pixel missed that edge,
 //! and its decode times an earlier one (drone seed 304, 1.8 rad/s: 13.4 → 11.6 % RMSE / peak;
@@ -797,6 +802,54 @@ struct Target<L: Layout> {
     /// `log2` (Q16.16, s) of the shortest crossing of one pixel read from the near units
     /// (with them: [`Spikes::with_near_units`]; `i32::MIN` without).
     near_floor_log2_s: i32,
+    /// Which FAC pixel the slow units' network reads.
+    slow_fac: SlowFacPixel,
+}
+
+/// Which FAC pixel the slow units' network reads: one pixel from the TRG pixel while the near
+/// units are chosen, at the layout's stride otherwise (as the calibrated readout reads the
+/// slow traces), so that the slow units time the crossings the chosen stride's paper's units
+/// are too fast for, over the same distance. The choice changes at an output
+/// ([`Readout::slow_units_near`]); a decode needs the distance that was in force at its TRG
+/// event, up to a few ms before the last change (changes come at least
+/// [`LOOK_EVERY`](super::stride_choice::LOOK_EVERY) outputs apart).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct SlowFacPixel {
+    /// One pixel away for the events after `since_us`.
+    near: bool,
+    /// The output time (µs) of the last change.
+    since_us: u32,
+    /// The distance for the events up to `since_us`.
+    before: bool,
+}
+
+impl SlowFacPixel {
+    /// At the layout's stride (as the network starts).
+    const LAYOUT: Self = Self {
+        near: false,
+        since_us: 0,
+        before: false,
+    };
+
+    /// Whether a TRG event at `t_us` read the FAC pixel one pixel away.
+    fn near_at(&self, t_us: u32) -> bool {
+        if EventTime::from_us(t_us).is_after(EventTime::from_us(self.since_us)) {
+            self.near
+        } else {
+            self.before
+        }
+    }
+
+    /// The distance for the events after the output at `t_us`.
+    fn follow(&mut self, near: bool, t_us: u32) {
+        if near != self.near {
+            *self = Self {
+                near,
+                since_us: t_us,
+                before: self.near,
+            };
+        }
+    }
 }
 
 /// The spike readout's state: each population's decoding, the field's histograms and the
@@ -1079,20 +1132,29 @@ impl<'a> Decoding<'a> {
         let log2_stride = target.rates.log2_stride();
         let (x, y) = target.layout.pixel(cell);
         let mut region = None;
+        // The distance the input was timed over: the slow units' FAC pixel as it was at the
+        // TRG event ([`SlowFacPixel`]).
+        let over = match self.slow_rule {
+            Some(_) if target.slow_fac.near_at(t_trg) => Stride::Near,
+            Some(_) => Stride::Layout,
+            None => self.stride,
+        };
         // The crossing time read (`l2dt`, or the near units' floor for the layout's decode of
         // an onset they decoded at their ceiling, below).
         let l2dt = match self.slow_rule {
             Some(rule) => {
-                let reach = match chosen {
-                    Stride::Near => rule.reach_log2_s.saturating_add(log2_stride),
-                    Stride::Layout => rule.reach_log2_s,
+                // The chosen stride's paper's units' reach, over the distance `over`.
+                let reach = match (chosen, over) {
+                    (Stride::Near, Stride::Layout) => rule.reach_log2_s.saturating_add(log2_stride),
+                    (Stride::Layout, Stride::Near) => rule.reach_log2_s.saturating_sub(log2_stride),
+                    _ => rule.reach_log2_s,
                 };
                 if c.busy() || l2dt <= reach {
                     // The paper's units time this edge: it crossed within their reach, or the
                     // pixel had another onset shortly before. Within an octave of their reach
                     // it lies beyond the slow units' floor ([`Field::add_beyond_floor`]).
                     if !c.busy() && within_an_octave_of_reach(l2dt, reach) {
-                        let floor = target.rates.rotation_rate_over(self.stride, reach, x);
+                        let floor = target.rates.rotation_rate_over(over, reach, x);
                         let region = target.field.geometry().region(x, y);
                         target.field.add_beyond_floor(region, positive, floor);
                     }
@@ -1143,7 +1205,7 @@ impl<'a> Decoding<'a> {
                 l2dt
             }
         };
-        let l2 = target.rates.rotation_rate_over(self.stride, l2dt, x);
+        let l2 = target.rates.rotation_rate_over(over, l2dt, x);
         let region = region.unwrap_or_else(|| target.field.geometry().region(x, y));
         target.field.add_in(self.population, region, l2, positive);
         target.samples += 1;
@@ -1320,6 +1382,7 @@ impl<'a, L: Layout> Spikes<'a, L> {
                 ambiguous: 0,
                 stride: StrideChoice::new(false),
                 near_floor_log2_s: i32::MIN,
+                slow_fac: SlowFacPixel::LAYOUT,
             },
             // The warm-up's onsets are not decoded; after it the field's own rules say when
             // its first decodes are evidence enough (as for the calibrated readout).
@@ -1480,7 +1543,13 @@ impl<L: Layout> Readout for Spikes<'_, L> {
         }
         self.sweep = (per_output, after);
         target.stride.age(self.cal.period_us);
+        let near = self.near.is_some() && target.stride.choice() == Stride::Near;
+        target.slow_fac.follow(near, t_us);
         self.gate.output(&mut target.field)
+    }
+
+    fn slow_units_near(&self) -> bool {
+        self.target.slow_fac.near
     }
 }
 
@@ -1500,6 +1569,26 @@ mod tests {
             + (share.log2() * 65_536.0) as i32;
         c.l2d = [i16::MIN, l2_pack(l2)];
         c
+    }
+
+    #[test]
+    fn a_slow_decode_reads_the_fac_pixel_in_force_at_its_trg_event() {
+        let mut f = SlowFacPixel::LAYOUT;
+        assert!(!f.near_at(5_000));
+        f.follow(true, 10_000);
+        // Events up to the output at 10 ms read the layout's stride, those after it one pixel.
+        assert!(!f.near_at(9_000) && !f.near_at(10_000));
+        assert!(f.near_at(10_001));
+        // The same choice again changes nothing.
+        f.follow(true, 74_000);
+        assert!(!f.near_at(10_000) && f.near_at(20_000));
+        // Back to the layout's stride: the decodes of inputs before the change still read one
+        // pixel.
+        f.follow(false, 138_000);
+        assert!(f.near_at(100_000) && !f.near_at(140_000));
+        // Across the clock's wrap.
+        f.follow(true, u32::MAX - 10);
+        assert!(!f.near_at(u32::MAX - 20) && f.near_at(5));
     }
 
     #[test]
