@@ -49,35 +49,34 @@
 //! units' FAC trace is down to a tenth) before it. Their FAC pixel follows the choice between
 //! the near units and the layout's (below), as the calibrated readout reads its slow traces:
 //! one pixel from the TRG pixel while the near units are chosen, at the layout's stride
-//! otherwise ([`crate::network::Network::set_near`]), so that they time, over the same distance, the crossings the
-//! chosen units are too fast for.
+//! otherwise ([`crate::network::Network::set_near`]), so that they time, over the same
+//! distance, the crossings the chosen units are too fast for.
 //!
 //! # Near units
-//! As the calibrated readout, the spike readout reads near units where the layout has them:
-//! the pipeline runs a third network of the paper's units with their FAC pixel one pixel from
-//! the TRG pixel ([`crate::network::Network::near_units`]), whose spikes are decoded the same
-//! way (the rate then reads over one pixel), and the same rule
-//! ([`stride_choice`](super::stride_choice)), fed from both networks' decodes, chooses between
-//! them. One thing differs: a drive decoded from spikes is good to about 0.1 %, and the own
-//! trace it is divided by, rebuilt from decoded onsets, to a few per cent, so close to its
-//! ceiling (`w_T` times the own trace) the decoded crossing time is mostly error. With the near
-//! units chosen they are therefore read only for drives up to [`NEAR_DRIVE_SHARE_LOG2`] of the
-//! ceiling (a one-pixel crossing of at least 2.1 ms), and the layout's units only for the
-//! onsets that the near unit facing the same way decoded above it: one stride times each
-//! onset. Such an onset crossed one pixel faster than the floor, so its layout decode reads no
-//! slower than twice the floor over the stride: the near units' decodes kept are those below
-//! their ceiling, jitter included, and a layout decode read slower than the floor (its own
-//! jitter, or the selection on the near decode's) would join them and sink the field's median
-//! (drone seed 1: 10.0 → 9.3 % RMSE / peak with the clamp, seed 61 9.7 → 8.2 %). (Reading the layout's units for every crossing of the stride under `stride` times
-//! that floor added a second decode to onsets the near units had timed already, from the fast
-//! tail of the layout's decodes: on drone seed 3, 162 k of them while |w| >= 0.6 rad/s, 109 k
-//! now.) The slow units read over the chosen stride's distance; a decode of an input timed
-//! over the other one (just before the choice changed) compares with the chosen units' reach
-//! over its own distance (one pixel in 54 ms is two in 108 ms at stride 2). Nor is a near decode read where the layout's unit
-//! facing the same way timed the same onset over its stride faster than the near unit over
-//! one pixel, and quickly ([`OVERRULING_FLOORS`]): the near unit's FAC pixel missed that edge,
-//! and its decode times an earlier one (drone seed 304, 1.8 rad/s: 13.4 → 11.6 % RMSE / peak;
-//! `SpikeCell::overrules`).
+//! As the calibrated readout, the spike readout reads near units where the layout has them: the
+//! pipeline runs a third network of the paper's units with their FAC pixel one pixel from the TRG
+//! pixel ([`crate::network::Network::near_units`]), whose spikes are decoded the same way (the rate
+//! then reads over one pixel), and the same rule ([`stride_choice`](super::stride_choice)), fed
+//! from both networks' decodes, chooses between them. One thing differs: a drive decoded from
+//! spikes is good to about 0.1 %, and the own trace it is divided by, rebuilt from decoded onsets,
+//! to a few per cent, so close to its ceiling (`w_T` times the own trace) the decoded crossing time
+//! is mostly error. With the near units chosen they are therefore read only for drives up to
+//! [`NEAR_DRIVE_SHARE_LOG2`] of the ceiling (a one-pixel crossing of at least 2.1 ms), and the
+//! layout's units only for the onsets that the near unit facing the same way decoded above it: one
+//! stride times each onset. Such an onset crossed one pixel faster than the floor, so its layout
+//! decode reads no slower than twice the floor over the stride: the near units' decodes kept are
+//! those below their ceiling, jitter included, and a layout decode read slower than the floor (its
+//! own jitter, or the selection on the near decode's) would join them and sink the field's median
+//! (drone seed 1: 10.0 → 9.3 % RMSE / peak with the clamp, seed 61 9.7 → 8.2 %). (Reading the
+//! layout's units for every crossing of the stride under `stride` times that floor added a second
+//! decode to onsets the near units had timed already, from the fast tail of the layout's decodes:
+//! on drone seed 3, 162 k of them while |w| >= 0.6 rad/s, 109 k now.) The slow units read over the
+//! chosen stride's distance; a decode of an input timed over the other one (just before the choice
+//! changed) compares with the chosen units' reach over its own distance (one pixel in 54 ms is two
+//! in 108 ms at stride 2). Nor is a near decode read where the layout's unit facing the same way
+//! timed the same onset over its stride faster than the near unit over one pixel, and quickly
+//! ([`OVERRULING_FLOORS`]): the near unit's FAC pixel missed that edge, and its decode times an
+//! earlier one (drone seed 304, 1.8 rad/s: 13.4 → 11.6 % RMSE / peak; `SpikeCell::overrules`).
 //!
 //! Causal: the network hands a spike at `t` over by the first output time at or after `t`,
 //! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
@@ -1215,8 +1214,8 @@ impl<'a> Decoding<'a> {
     /// Whether a decode `l` (`log2(D / (w_T own))`, Q16) of the onset at `t_trg` of pixel
     /// `(x, y)`, whose own trace after it is `own` (and its `log2`, Q16), times an edge that
     /// moves mostly vertically ([`aperture`]), as the onsets decoded at the pixels the layout's
-    /// stride above and below by this network or `other` say (their traces rebuilt as the pixel's own; a neighbour
-    /// whose last decoded onset came after `t_trg` says nothing).
+    /// stride above and below by this network or `other` say (their traces rebuilt as the
+    /// pixel's own; a neighbour whose last decoded onset came after `t_trg` says nothing).
     fn moves_vertically<L: Layout>(
         &self,
         target: &Target<L>,
