@@ -287,12 +287,34 @@ const UNIT_WEIGHT: u32 = 1 << 16;
 /// `sample`; both below 2^40) agree in sign beyond random signs: `(P - N)² / (P + N)` less
 /// [`RANDOM_AGREEMENT`] samples, at least 0; 0 for an empty region. The rule by which a
 /// population (or a stride, [`super::stride_choice`]) answers.
+///
+/// Most regions need no division (82 % of the calls on dev03's F405 window, where the 64-bit
+/// division was the one hot library call of a field reading): a region of one sign gives
+/// `d · 1`, and one with `d² <= random · t` gives 0, since `d · (d / t)` rounded down is at
+/// most `d² / t` (the same values as the division: `sign_agreement_shortcuts_are_exact`).
+#[inline]
 pub fn sign_agreement(neg: u64, pos: u64, sample: u64) -> u64 {
     let (d, t) = (neg.abs_diff(pos), neg + pos);
-    // d · (d / t), with d / t in Q16 (d <= t).
-    (d << 16).checked_div(t).map_or(0, |share| {
-        ((d * share) >> 16).saturating_sub(u64::from(RANDOM_AGREEMENT) * sample)
-    })
+    let random = u64::from(RANDOM_AGREEMENT) * sample;
+    if d == t {
+        // One sign (or none): d / t is one.
+        return d.saturating_sub(random);
+    }
+    // In 32 x 32-bit products (the common case; larger masses take the division).
+    if let (Ok(d), Ok(t), Ok(random)) = (u32::try_from(d), u32::try_from(t), u32::try_from(random))
+    {
+        if u64::from(d) * u64::from(d) <= u64::from(random) * u64::from(t) {
+            return 0;
+        }
+    }
+    agreement_by_division(d, t, random)
+}
+
+/// `d · (d / t)` less `random`, at least 0, with `d / t` in Q16 (`d <= t`); 0 for `t = 0`.
+fn agreement_by_division(d: u64, t: u64, random: u64) -> u64 {
+    (d << 16)
+        .checked_div(t)
+        .map_or(0, |share| ((d * share) >> 16).saturating_sub(random))
 }
 
 /// Settings of the field estimator.
@@ -1609,6 +1631,44 @@ mod tests {
         let readings = if fresh { 1 } else { FRESH_READINGS + 1 };
         let rate_q16 = if negative { -1 << 16 } else { 1 << 16 };
         Some(RecentAnswer { rate_q16, readings })
+    }
+
+    proptest::proptest! {
+        /// The shortcuts of [`sign_agreement`] give what the division gives, over the documented
+        /// range (both masses below 2^40) and the samples' weights the field and the stride
+        /// choice use (2^8 to 2^17).
+        #[test]
+        fn sign_agreement_shortcuts_are_exact(
+            neg in 0u64..1 << 40,
+            pos in 0u64..1 << 40,
+            sample in 1u64 << 8..1 << 17,
+            small in proptest::bool::ANY,
+        ) {
+            // Half the cases near a split region's floor: masses of a few samples.
+            let (neg, pos) = if small { (neg % (64 * sample), pos % (64 * sample)) } else { (neg, pos) };
+            let (d, t) = (neg.abs_diff(pos), neg + pos);
+            let random = u64::from(RANDOM_AGREEMENT) * sample;
+            proptest::prop_assert_eq!(sign_agreement(neg, pos, sample), agreement_by_division(d, t, random));
+        }
+    }
+
+    /// The same on a grid of up to 40 samples of each sign, one sign alone and empty regions
+    /// included, at the smallest and largest weights of a sample.
+    #[test]
+    fn sign_agreement_shortcuts_are_exact_on_a_grid() {
+        for sample in [1u64 << 8, 3 << 15, 1 << 17] {
+            let random = u64::from(RANDOM_AGREEMENT) * sample;
+            for n in 0..=160 {
+                for p in 0..=160 {
+                    let (neg, pos) = (n * sample / 4, p * sample / 4);
+                    let (d, t) = (neg.abs_diff(pos), neg + pos);
+                    assert_eq!(
+                        sign_agreement(neg, pos, sample),
+                        agreement_by_division(d, t, random)
+                    );
+                }
+            }
+        }
     }
 
     /// A DAVIS346-like field (346 x 260, f = 226 px, principal point at the centre), all four
