@@ -231,7 +231,7 @@ fn eval_errors_are_one_line() {
 fn eval_reads_the_flags() {
     // Ground truth 0 then 1 rad/s; the estimate is 0.5 everywhere, flagged "no evidence" (2)
     // over the first half. RMSE takes the values as they are; the flag figures count the
-    // flagged half, and the RMS output takes it as 0.
+    // flagged half, the RMS output takes it as 0, and the RMSE where answered leaves it out.
     let dir = tempfile::tempdir().unwrap();
     let (gt, yaw) = (dir.path().join("gt.csv"), dir.path().join("yaw.csv"));
     let (mut g, mut y) = (
@@ -261,6 +261,11 @@ fn eval_reads_the_flags() {
     assert_eq!(f["no_evidence_while_turning"].as_f64().unwrap(), 0.0);
     let rms = f["rms_answered_rad_s"].as_f64().unwrap();
     assert!((rms - 0.5 * 0.5f64.sqrt()).abs() < 0.01, "{rms}");
+    // Where it answers (the second half, 1 rad/s), it is 0.5 off: half the peak.
+    let answered = f["rmse_answered_rad_s"].as_f64().unwrap();
+    assert!((answered - 0.5).abs() < 0.02, "{answered}");
+    let rel = f["rmse_answered_rel_peak"].as_f64().unwrap();
+    assert!((rel - 0.5).abs() < 0.02, "{rel}");
     // Without a flags column there are no flag figures.
     let plain = dir.path().join("plain.csv");
     let text = std::fs::read_to_string(&yaw).unwrap();

@@ -62,10 +62,15 @@ struct FlagTally {
     turning_no_evidence: usize,
     /// Σ x² with "no evidence" samples as 0.
     answered_sq: f64,
+    /// Points not flagged "no evidence", and their Σ (x - g)².
+    answered: usize,
+    answered_err_sq: f64,
 }
 
 impl FlagTally {
-    fn figures(&self) -> FlagFigures {
+    /// The figures, `peak` being the largest |ground truth| on the grid; the answered samples'
+    /// error only for a rad/s estimate (a normalized one's scale is fitted over the whole grid).
+    fn figures(&self, peak: f64, kind: EstimateKind) -> FlagFigures {
         let share = |a: usize, b: usize| {
             if b == 0 {
                 f64::NAN
@@ -73,10 +78,21 @@ impl FlagTally {
                 a as f64 / b as f64
             }
         };
+        let rmse_answered = if kind == EstimateKind::RadPerSec && self.answered > 0 {
+            (self.answered_err_sq / self.answered as f64).sqrt()
+        } else {
+            f64::NAN
+        };
         FlagFigures {
             no_evidence_share: share(self.no_evidence, self.points),
             no_evidence_while_turning: share(self.turning_no_evidence, self.turning),
             rms_answered_rad_s: (self.answered_sq / self.points.max(1) as f64).sqrt(),
+            rmse_answered_rad_s: rmse_answered,
+            rmse_answered_rel_peak: if peak > 0.0 {
+                rmse_answered / peak
+            } else {
+                f64::NAN
+            },
         }
     }
 }
@@ -300,6 +316,8 @@ impl<'a> Evaluator<'a> {
             f.turning_no_evidence += usize::from(turning && no_evidence);
             if !no_evidence {
                 f.answered_sq += x * x;
+                f.answered += 1;
+                f.answered_err_sq += (x - g) * (x - g);
             }
         }
         self.est.push(t, g, x)?;
@@ -416,7 +434,7 @@ impl<'a> Evaluator<'a> {
             gt_heading_rad: self.est.gt_heading(),
             missing_estimates: missing.saturating_add(self.missing),
             estimate,
-            flags: self.flags.map(|f| f.figures()),
+            flags: self.flags.map(|f| f.figures(peak, self.kind)),
             gyro: self.gyro.as_ref().map(|g| g.fig.metrics(peak)),
             plot: self.plot.take(),
         })

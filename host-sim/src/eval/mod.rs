@@ -490,6 +490,11 @@ pub struct FlagFigures {
     /// RMS of the estimate with the samples flagged "no evidence" counted as 0, rad/s: what a
     /// static camera's output amounts to for such a consumer.
     pub rms_answered_rad_s: f64,
+    /// RMSE over the grid points not flagged "no evidence", rad/s: how far the estimate is
+    /// from the truth where it answers (NaN when it never does, and for a normalized estimate).
+    pub rmse_answered_rad_s: f64,
+    /// The same over the peak |ground truth|.
+    pub rmse_answered_rel_peak: f64,
 }
 
 /// |yaw rate| (rad/s) from which a grid point counts as turning in [`FlagFigures`].
@@ -670,6 +675,15 @@ impl Report {
                 "RMS output",
                 f.rms_answered_rad_s
             );
+            if f.rmse_answered_rad_s.is_finite() {
+                let _ = writeln!(
+                    s,
+                    "  {:<21}{:.4} rad/s ({:.1} % of peak; no-evidence samples left out)",
+                    "RMSE where answered",
+                    f.rmse_answered_rad_s,
+                    100.0 * f.rmse_answered_rel_peak
+                );
+            }
         }
         s
     }
