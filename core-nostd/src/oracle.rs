@@ -549,7 +549,10 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let n = layout.cell_count();
         let slow_tau = tau_a_us.max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
         let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
-        let fields = [field(tau_a_us), field(slow_tau).beyond_floor_over(tau_a_us)];
+        let fields = [
+            field(tau_a_us).stops_briefly(),
+            field(slow_tau).beyond_floor_over(tau_a_us),
+        ];
         let twins = crate::readout::calibrated::has_twins(&layout);
         let stride = OracleStrideChoice::new(crate::readout::calibrated::has_near(&layout));
         Self {
@@ -1034,7 +1037,10 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         let n = layout.cell_count();
         let slow_tau = tau_a_us.max(f64::from(crate::readout::calibrated::SLOW_TAU_A_US));
         let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
-        let fields = [field(tau_a_us), field(slow_tau).beyond_floor_over(tau_a_us)];
+        let fields = [
+            field(tau_a_us).stops_briefly(),
+            field(slow_tau).beyond_floor_over(tau_a_us),
+        ];
         let slow = OracleParams {
             tau_fac: f64::from(crate::params::TAU_SLOW_US),
             ..p
@@ -1700,7 +1706,8 @@ fn oracle_bin(rate: f64) -> usize {
 /// one, and if regions in at least
 /// [`ABOVE_SUPPORT`](crate::readout::field::ABOVE_SUPPORT) row bands above the principal row,
 /// the topmost among them, have values, and if neither sign holds more than a quarter of the
-/// weight; no answer when the decodes have all but stopped.
+/// weight; no answer when the decodes have all but stopped (and, for the paper's units, when
+/// their latest decodes fall below half the histograms' rate).
 pub struct OracleField {
     focal: f64,
     cx: f64,
@@ -1716,6 +1723,10 @@ pub struct OracleField {
     hist: std::vec::Vec<[[f64; ORACLE_BINS]; 2]>,
     recent: f64,
     short: f64,
+    /// Decodes leaky over [`crate::readout::field::BRIEF_TAU_US`], and whether this field (the
+    /// paper's units') stops answering when they fall below half its rate.
+    brief: f64,
+    brief_stop: bool,
     /// The readout has answered one direction for a while (see
     /// [`crate::readout::field::Field::set_direction_established`]).
     established: bool,
@@ -1768,6 +1779,8 @@ impl OracleField {
             hist: std::vec![[[0.0; ORACLE_BINS]; 2]; 4 * COLS * ROWS],
             recent: 0.0,
             short: 0.0,
+            brief: 0.0,
+            brief_stop: false,
             established: false,
             recent_motion: None,
             beyond: std::vec![([0.0; 2], 0); 4 * COLS * ROWS],
@@ -1827,6 +1840,14 @@ impl OracleField {
         }
     }
 
+    /// This field (the paper's units') says nothing while its decodes over the last
+    /// [`crate::readout::field::BRIEF_TAU_US`] fall below
+    /// `1 / `[`crate::readout::field::BRIEF_STOP_RATIO`] of its histograms' rate.
+    fn stops_briefly(mut self) -> Self {
+        self.brief_stop = true;
+        self
+    }
+
     /// This field (the slow units') counts the paper's units' decodes beyond its floor, leaky
     /// over the paper's units' histogram time constant `fast_tau_us`.
     fn beyond_floor_over(mut self, fast_tau_us: f64) -> Self {
@@ -1860,6 +1881,8 @@ impl OracleField {
         }
         let short_keep = (-self.period / f64::from(crate::readout::field::SHORT_TAU_US)).exp();
         self.short = self.short * short_keep + self.recent;
+        let brief_keep = (-self.period / f64::from(crate::readout::field::BRIEF_TAU_US)).exp();
+        self.brief = self.brief * brief_keep + self.recent;
         self.recent = 0.0;
     }
 
@@ -1918,6 +1941,11 @@ impl OracleField {
     fn estimate_noting(&self, recent_needed: &mut bool) -> Option<f64> {
         let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
         if self.short / short_tau * 8.0 < self.rate() {
+            return None;
+        }
+        use crate::readout::field::{BRIEF_STOP_RATIO, BRIEF_TAU_US};
+        let brief_rate = self.brief / f64::from(BRIEF_TAU_US);
+        if self.brief_stop && brief_rate * (BRIEF_STOP_RATIO as f64) < self.rate() {
             return None;
         }
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
