@@ -1723,8 +1723,8 @@ pub struct OracleField {
     hist: std::vec::Vec<[[f64; ORACLE_BINS]; 2]>,
     recent: f64,
     short: f64,
-    /// Decodes leaky over [`crate::readout::field::BRIEF_TAU_US`], and whether this field (the
-    /// paper's units') stops answering when they fall below half its rate.
+    /// Decodes leaky over [`OracleField::brief_tau`], and whether this field (the paper's
+    /// units') stops answering when they fall below half its rate.
     brief: f64,
     brief_stop: bool,
     /// The readout has answered one direction for a while (see
@@ -1840,12 +1840,28 @@ impl OracleField {
         }
     }
 
-    /// This field (the paper's units') says nothing while its decodes over the last
-    /// [`crate::readout::field::BRIEF_TAU_US`] fall below
-    /// `1 / `[`crate::readout::field::BRIEF_STOP_RATIO`] of its histograms' rate.
+    /// This field (the paper's units') says nothing while its decodes stop at once
+    /// ([`OracleField::stopped_at_once`]).
     fn stops_briefly(mut self) -> Self {
         self.brief_stop = true;
         self
+    }
+
+    /// The brief time constant (µs): [`crate::readout::field::BRIEF_TAU_TENTHS`] of `tau_A`, as
+    /// the fixed-point field takes it (whole µs).
+    fn brief_tau(&self) -> f64 {
+        let tenths = crate::readout::field::BRIEF_TAU_TENTHS;
+        f64::from(((self.tau_a as u32) / 10 * tenths).max(1))
+    }
+
+    /// Whether the decodes over the brief time constant fell below
+    /// `1 / `[`crate::readout::field::BRIEF_STOP_RATIO`] of the histograms' rate, where that
+    /// expects [`crate::readout::field::BRIEF_MIN_DECODES`] or more.
+    fn stopped_at_once(&self) -> bool {
+        use crate::readout::field::{BRIEF_MIN_DECODES, BRIEF_STOP_RATIO};
+        let (tau, rate) = (self.brief_tau(), self.rate());
+        rate * tau >= BRIEF_MIN_DECODES as f64
+            && self.brief / tau * (BRIEF_STOP_RATIO as f64) < rate
     }
 
     /// This field (the slow units') counts the paper's units' decodes beyond its floor, leaky
@@ -1881,7 +1897,7 @@ impl OracleField {
         }
         let short_keep = (-self.period / f64::from(crate::readout::field::SHORT_TAU_US)).exp();
         self.short = self.short * short_keep + self.recent;
-        let brief_keep = (-self.period / f64::from(crate::readout::field::BRIEF_TAU_US)).exp();
+        let brief_keep = (-self.period / self.brief_tau()).exp();
         self.brief = self.brief * brief_keep + self.recent;
         self.recent = 0.0;
     }
@@ -1943,9 +1959,7 @@ impl OracleField {
         if self.short / short_tau * 8.0 < self.rate() {
             return None;
         }
-        use crate::readout::field::{BRIEF_STOP_RATIO, BRIEF_TAU_US};
-        let brief_rate = self.brief / f64::from(BRIEF_TAU_US);
-        if self.brief_stop && brief_rate * (BRIEF_STOP_RATIO as f64) < self.rate() {
+        if self.brief_stop && self.stopped_at_once() {
             return None;
         }
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();

@@ -110,8 +110,9 @@
 //!   would otherwise bias a steady slow turn low.)
 //! - The answering population says nothing when its decodes over the last [`SHORT_TAU_US`]
 //!   have all but stopped (the camera stopped turning), and the paper's units also when their
-//!   decodes over the last [`BRIEF_TAU_US`] fall below half their histograms' rate
-//!   ([`BRIEF_STOP_RATIO`]): when the image motion stops or reverses at once (a yaw step),
+//!   decodes over the last 0.3 `tau_A` ([`BRIEF_TAU_TENTHS`]) fall below half their
+//!   histograms' rate ([`BRIEF_STOP_RATIO`], where that expects [`BRIEF_MIN_DECODES`] or
+//!   more): when the image motion stops or reverses at once (a yaw step),
 //!   no edge completes a crossing for a while, and their 10 ms histograms would repeat the old
 //!   rate for 20-30 ms (DAVIS240 steps, seed 8: 10.7 → 8.4 % RMSE / peak).
 //! - A trigger goes to the slow units only where the paper's units do not burst, so the slow
@@ -224,17 +225,23 @@ pub const SHORT_TAU_US: u32 = 20_000;
 /// A population whose recent decode rate is below `1 / STOPPED_RATIO` of its histograms'
 /// rate has stopped seeing motion.
 const STOPPED_RATIO: u64 = 8;
-/// Time constant of the paper's units' latest decode rate (µs), which tells an abrupt stop or
-/// reversal of the image motion: no edge completes a crossing then, and their decodes stop
-/// within a few ms while their histograms still remember the old motion for `tau_A`.
-pub const BRIEF_TAU_US: u32 = 3_000;
-/// The paper's units say nothing while their decode rate over the last [`BRIEF_TAU_US`] is
-/// below `1 / BRIEF_STOP_RATIO` of their histograms' (a turn that slows down smoothly does not
-/// halve its decode rate within their memory; with 1, any drop below their rate, rotations,
-/// drones and hovers read up to 20 points of RMSE / peak worse). The time constant and ratio
-/// were chosen on the design scenes: 2-4 ms and 2 read within 1.5 points of each other there,
-/// 3 ms and 8, or 5 ms and 4, changed little.
+/// Time constant of the paper's units' latest decode rate, in tenths of their histograms'
+/// (`tau_A`; 3 ms for a whole DAVIS240/346 layout). It tells an abrupt stop or reversal of the
+/// image motion: no edge completes a crossing then, and their decodes stop within a few ms
+/// while their histograms still remember the old motion for `tau_A`. (A layout with fewer
+/// units has a longer `tau_A`, for as many decodes: so has this.)
+pub const BRIEF_TAU_TENTHS: u32 = 3;
+/// The paper's units say nothing while their decode rate over the brief time constant
+/// ([`BRIEF_TAU_TENTHS`]) is below `1 / BRIEF_STOP_RATIO` of their histograms' (a turn that
+/// slows down smoothly does not halve its decode rate within their memory; with 1, any drop
+/// below their rate, rotations, drones and hovers read up to 20 points of RMSE / peak worse).
+/// The time constant and ratio were chosen on the design scenes: 2-4 ms and 2 read within 1.5
+/// points of each other there, 3 ms and 8, or 5 ms and 4, changed little.
 pub const BRIEF_STOP_RATIO: u64 = 2;
+/// ... and only where their histograms' rate expects at least this many decodes over the brief
+/// time constant: with fewer, a gap between decodes is chance, or the gap between two edges of
+/// a sparse texture (a count expected at 4 falls to half or less one time in four).
+pub const BRIEF_MIN_DECODES: u64 = 16;
 
 /// Net sign agreement `(P - N)² / (P + N)` (in samples) that a region of decodes with random
 /// signs exceeds about one time in 20 (it is about half a sample times a χ² variable with one
@@ -610,10 +617,12 @@ pub struct Field {
     short: [u32; 2],
     /// Per-period decay of `short` (Q1.31).
     short_keep_q31: u32,
-    /// The paper's units' decodes, leaky over [`BRIEF_TAU_US`] (Q16 samples).
+    /// The paper's units' decodes, leaky over `brief_tau_us` (Q16 samples).
     brief: u32,
     /// Per-period decay of `brief` (Q1.31).
     brief_keep_q31: u32,
+    /// [`BRIEF_TAU_TENTHS`] of the paper's units' `tau_A` (µs, >= 1).
+    brief_tau_us: u32,
     /// The bands the layout's units reach.
     coverage: Coverage,
     /// The population that answers is the one whose decodes agree more in sign (else the one
@@ -641,6 +650,8 @@ impl Field {
         // grow = 1/keep; stored halved in Q1.31: 2^62 / keep / 2.
         let grow = |k: u32| ((1u64 << 61) / u64::from(k.max(1))).min(u64::from(u32::MAX)) as u32;
         let [fast, slow] = keep_q31;
+        let [fast_tau, _] = tau_us;
+        let brief_tau_us = (fast_tau / 10 * BRIEF_TAU_TENTHS).max(1);
         Self {
             geometry,
             settings,
@@ -657,7 +668,8 @@ impl Field {
             short: [0; 2],
             short_keep_q31: keep(SHORT_TAU_US),
             brief: 0,
-            brief_keep_q31: keep(BRIEF_TAU_US),
+            brief_keep_q31: keep(brief_tau_us),
+            brief_tau_us,
             coverage,
             by_agreement: true,
             established: false,
@@ -996,8 +1008,7 @@ impl Field {
         if short_rate.saturating_mul(STOPPED_RATIO) < rate {
             return FieldReading::NOTHING;
         }
-        let brief_rate = u64::from(self.brief) / u64::from(BRIEF_TAU_US);
-        if pop == Population::Fast && brief_rate.saturating_mul(BRIEF_STOP_RATIO) < rate {
+        if pop == Population::Fast && self.stopped_at_once(rate) {
             return FieldReading::NOTHING;
         }
         let reading = self.population_estimate(pop);
@@ -1020,6 +1031,16 @@ impl Field {
             estimate,
             ..reading
         }
+    }
+
+    /// Whether the paper's units' decodes, at `rate` (Q16 samples per µs) over their
+    /// histograms, stopped at once: over the brief time constant they come at less than
+    /// `1 / `[`BRIEF_STOP_RATIO`] of it, where it expects [`BRIEF_MIN_DECODES`] or more.
+    fn stopped_at_once(&self, rate: u64) -> bool {
+        let tau = u64::from(self.brief_tau_us);
+        let brief_rate = u64::from(self.brief) / tau;
+        rate.saturating_mul(tau) >= BRIEF_MIN_DECODES << 16
+            && brief_rate.saturating_mul(BRIEF_STOP_RATIO) < rate
     }
 
     /// `score` of a population scaled by how much its decode rate over the last
