@@ -1038,7 +1038,7 @@ impl Field {
     /// `1 / `[`BRIEF_STOP_RATIO`] of it, where it expects [`BRIEF_MIN_DECODES`] or more.
     fn stopped_at_once(&self, rate: u64) -> bool {
         let tau = u64::from(self.brief_tau_us);
-        let brief_rate = u64::from(self.brief) / tau;
+        let brief_rate = u64::from(self.brief).checked_div(tau).unwrap_or(0);
         rate.saturating_mul(tau) >= BRIEF_MIN_DECODES << 16
             && brief_rate.saturating_mul(BRIEF_STOP_RATIO) < rate
     }
