@@ -112,9 +112,9 @@
 //!   have all but stopped (the camera stopped turning), and the paper's units also when their
 //!   decodes over the last 0.3 `tau_A` ([`BRIEF_TAU_TENTHS`]) fall below half their
 //!   histograms' rate ([`BRIEF_STOP_RATIO`], where that expects [`BRIEF_MIN_DECODES`] or
-//!   more): when the image motion stops or reverses at once (a yaw step),
-//!   no edge completes a crossing for a while, and their 10 ms histograms would repeat the old
-//!   rate for 20-30 ms (DAVIS240 steps, seed 8: 10.7 → 8.4 % RMSE / peak).
+//!   more): when the image motion stops or reverses at once (a yaw step), no edge completes a
+//!   crossing for a while, and their 10 ms histograms would repeat the old rate for 20-30 ms
+//!   (DAVIS240 steps, seed 8: 10.7 → 8.4 % RMSE / peak).
 //! - A trigger goes to the slow units only where the paper's units do not burst, so the slow
 //!   units' histograms end at the paper's units' floor (the slowest rotation they time: 0.08
 //!   rad/s across one pixel at a DAVIS346's principal point), and a turn whose crossings
@@ -238,9 +238,10 @@ pub const BRIEF_TAU_TENTHS: u32 = 3;
 /// The time constant and ratio were chosen on the design scenes: 2-4 ms and 2 read within 1.5
 /// points of each other there, 3 ms and 8, or 5 ms and 4, changed little.
 pub const BRIEF_STOP_RATIO: u64 = 2;
-/// ... and only where their histograms' rate expects at least this many decodes over the brief
-/// time constant: with fewer, a gap between decodes is chance, or the gap between two edges of
-/// a sparse texture (a count expected at 4 falls to half or less one time in four).
+/// The paper's units' stop ([`BRIEF_STOP_RATIO`]) applies only where their histograms' rate
+/// expects at least this many decodes over the brief time constant: with fewer, a gap between
+/// decodes is chance, or the gap between two edges of a sparse texture (a count expected at 4
+/// falls to half or less one time in four).
 pub const BRIEF_MIN_DECODES: u64 = 16;
 
 /// Net sign agreement `(P - N)² / (P + N)` (in samples) that a region of decodes with random
@@ -1698,10 +1699,15 @@ mod tests {
             small in proptest::bool::ANY,
         ) {
             // Half the cases near a split region's floor: masses of a few samples.
-            let (neg, pos) = if small { (neg % (64 * sample), pos % (64 * sample)) } else { (neg, pos) };
+            let (neg, pos) = if small {
+                (neg % (64 * sample), pos % (64 * sample))
+            } else {
+                (neg, pos)
+            };
             let (d, t) = (neg.abs_diff(pos), neg + pos);
             let random = u64::from(RANDOM_AGREEMENT) * sample;
-            proptest::prop_assert_eq!(sign_agreement(neg, pos, sample), agreement_by_division(d, t, random));
+            let by_division = agreement_by_division(d, t, random);
+            proptest::prop_assert_eq!(sign_agreement(neg, pos, sample), by_division);
         }
     }
 
