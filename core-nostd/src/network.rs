@@ -696,7 +696,7 @@ impl<'a, L: Layout> Network<'a, L> {
     /// The same network with its units' FAC pixel one pixel from the TRG pixel instead of the
     /// layout's stride: the near units (see [`crate::readout::stride_choice`]).
     pub fn near_units(mut self) -> Self {
-        self.stride = 1;
+        self.set_near(true);
         self
     }
 
