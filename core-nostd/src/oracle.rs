@@ -1855,11 +1855,11 @@ impl OracleField {
     }
 
     /// Whether the decodes over the brief time constant fell below
-    /// `1 / `[`crate::readout::field::BRIEF_STOP_RATIO`] of the histograms' rate, where that
-    /// expects [`crate::readout::field::BRIEF_MIN_DECODES`] or more.
-    fn stopped_at_once(&self) -> bool {
+    /// `1 / `[`crate::readout::field::BRIEF_STOP_RATIO`] of the histograms' `rate` (decodes
+    /// per µs), where that expects [`crate::readout::field::BRIEF_MIN_DECODES`] or more.
+    fn stopped_at_once(&self, rate: f64) -> bool {
         use crate::readout::field::{BRIEF_MIN_DECODES, BRIEF_STOP_RATIO};
-        let (tau, rate) = (self.brief_tau(), self.rate());
+        let tau = self.brief_tau();
         rate * tau >= BRIEF_MIN_DECODES as f64
             && self.brief / tau * (BRIEF_STOP_RATIO as f64) < rate
     }
@@ -1956,10 +1956,12 @@ impl OracleField {
     /// only because the readout answered a moment ago.
     fn estimate_noting(&self, recent_needed: &mut bool) -> Option<f64> {
         let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
-        if self.short / short_tau * 8.0 < self.rate() {
+        // The histograms' decode rate, summed over every bin once for both rules.
+        let rate = self.rate();
+        if self.short / short_tau * 8.0 < rate {
             return None;
         }
-        if self.brief_stop && self.stopped_at_once() {
+        if self.brief_stop && self.stopped_at_once(rate) {
             return None;
         }
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
