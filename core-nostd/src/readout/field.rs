@@ -186,8 +186,10 @@ pub struct Coverage {
 /// 126 window (0.23 f) it helps as on the whole sensor (0.48 f).
 pub const FAR_ROWS_Q12: i64 = 410;
 
-/// Histogram bins per region and sign.
+/// Histogram bins per region and sign (at most 64: [`Field`] marks the occupied ones in a
+/// `u64`).
 pub const BINS: usize = 64;
+const _: () = assert!(BINS <= 64);
 
 /// Decoded bursts (leaky, Q16) from which a region whose decodes agree in sign reads the
 /// median of that sign (`majority_median`); below, its signed median. Where motion has just
@@ -608,6 +610,11 @@ pub struct Field {
     /// Sum of each population's bins per region and sign (kept with the bins, so that no
     /// output has to add them all up).
     mass: [[[u64; 2]; REGIONS]; 2],
+    /// Which bins of each histogram may hold weight (bit `i`: bin `i`), `[population][region]
+    /// [sign]`. Invariant: a bin whose bit is clear is 0. The halving in [`Field::age`] visits
+    /// only these bins: a region's decodes fill a few octaves of the 64 bins, and the halving,
+    /// every `tau ln 2`, was the field's largest cost on a Cortex-M.
+    occupied: [[[u64; 2]; REGIONS]; 2],
     /// Per region and sign: decodes of the paper's units within an octave above their floor at
     /// onsets the slow units decode too (the sign of the slow units' decode), in the paper's
     /// units' population's weight (halved with it). See [`Field::add_beyond_floor`].
@@ -664,6 +671,7 @@ impl Field {
             tau_us,
             recent: [0; 2],
             mass: [[[0; 2]; REGIONS]; 2],
+            occupied: [[[0; 2]; REGIONS]; 2],
             beyond_floor: [[0; 2]; REGIONS],
             floor_bin: [0; REGIONS],
             short: [0; 2],
@@ -747,6 +755,14 @@ impl Field {
         {
             let before = *b;
             *b = b.saturating_add(w);
+            if let Some(o) = self
+                .occupied
+                .get_mut(pop as usize)
+                .and_then(|o| o.get_mut(region))
+                .and_then(|o| o.get_mut(usize::from(positive)))
+            {
+                *o |= 1 << bin;
+            }
             if let Some(m) = self
                 .mass
                 .get_mut(pop as usize)
@@ -796,12 +812,13 @@ impl Field {
             *recent = 0;
         }
         let mut shifts = [0u32; 2];
-        for ((((weight, grow), hist), mass), halved) in self
+        for (((((weight, grow), hist), mass), occupied), halved) in self
             .weight
             .iter_mut()
             .zip(self.grow_half_q31.iter())
             .zip(self.hist.iter_mut())
             .zip(self.mass.iter_mut())
+            .zip(self.occupied.iter_mut())
             .zip(shifts.iter_mut())
         {
             let mut w = (u64::from(*weight) * u64::from(*grow)) >> 30;
@@ -812,14 +829,9 @@ impl Field {
                 shift += 1;
             }
             if shift > 0 {
-                for (region, m) in hist.iter_mut().zip(mass.iter_mut()) {
-                    for (sign, m) in region.iter_mut().zip(m.iter_mut()) {
-                        let mut sum = 0u64;
-                        for b in sign.iter_mut() {
-                            *b = b.checked_shr(shift).unwrap_or(0);
-                            sum += u64::from(*b);
-                        }
-                        *m = sum;
+                for ((region, m), o) in hist.iter_mut().zip(mass.iter_mut()).zip(occupied) {
+                    for ((bins, m), o) in region.iter_mut().zip(m.iter_mut()).zip(o) {
+                        *m = shift_bins(bins, o, shift);
                     }
                 }
             }
@@ -894,7 +906,13 @@ impl Field {
     fn population_value(&self, pop: Population, region: usize) -> Option<RegionStats> {
         let [neg, pos] = self.hist.get(pop as usize)?.get(region)?;
         let mut masses = *self.mass.get(pop as usize)?.get(region)?;
+        let mut occupied = *self.occupied.get(pop as usize)?.get(region)?;
         let beyond = self.beyond_floor_mass(pop, region, [neg, pos]);
+        if !beyond.is_empty() {
+            for o in occupied.iter_mut() {
+                *o |= 1 << beyond.bin;
+            }
+        }
         // With a count beyond the floor, a copy of the histograms with it in the floor's bin
         // (the walks below stay as they are for every other region).
         let with_beyond;
@@ -930,14 +948,12 @@ impl Field {
         let mut out = [0i64; 3];
         let mut found = 0usize;
         let mut acc = 0u64;
-        let signed_bins = neg
-            .iter()
-            .enumerate()
-            .rev()
-            .map(|(i, &m)| (i, m, false))
-            .chain(pos.iter().enumerate().map(|(i, &m)| (i, m, true)));
-        for (i, m, positive) in signed_bins {
-            let m = u64::from(m);
+        let [occupied_neg, occupied_pos] = occupied;
+        let signed_bins = marked_bins(occupied_neg, true)
+            .map(|i| (i, neg, false))
+            .chain(marked_bins(occupied_pos, false).map(|i| (i, pos, true)));
+        for (i, bins, positive) in signed_bins {
+            let m = u64::from(bins.get(i).copied().unwrap_or(0));
             while found < 3 && m > 0 && acc + m >= targets.get(found).copied().unwrap_or(0) {
                 let need = targets.get(found).copied().unwrap_or(0).saturating_sub(acc);
                 // The walk goes along increasing signed rate: up the positive bins, down the
@@ -959,7 +975,7 @@ impl Field {
         #[cfg(not(test))]
         let settled_q16 = SETTLED_SAMPLES_Q16;
         let median = if self.established || samples_q16 >= u64::from(settled_q16) {
-            majority_median([neg, pos], masses, signed_median).unwrap_or(signed_median)
+            majority_median([neg, pos], occupied, masses, signed_median).unwrap_or(signed_median)
         } else {
             signed_median
         };
@@ -1332,6 +1348,44 @@ fn fit_intercept(sums: &[HalfSums; 2], used: [bool; 2]) -> Option<(i64, u64)> {
     Some((omega_q12.saturating_mul(16), variance))
 }
 
+/// Shifts a histogram's bins right by `shift` (any; 32 and more empty them) and returns their
+/// new sum, visiting only the bins `occupied` marks and clearing the marks of those that reach
+/// 0. Keeps the invariant of [`Field`]'s `occupied`: a bin whose mark is clear is 0.
+fn shift_bins(bins: &mut [u32; BINS], occupied: &mut u64, shift: u32) -> u64 {
+    let mut sum = 0u64;
+    let mut rest = *occupied;
+    while rest != 0 {
+        let i = rest.trailing_zeros();
+        rest &= rest - 1;
+        if let Some(b) = bins.get_mut(i as usize) {
+            *b = b.checked_shr(shift).unwrap_or(0);
+            if *b == 0 {
+                *occupied &= !(1 << i);
+            }
+            sum += u64::from(*b);
+        }
+    }
+    sum
+}
+
+/// The bins marked in `occupied` (bit `i`: bin `i`), lowest first, or highest first when
+/// `descending`: the walks over a histogram skip the bins known to be empty.
+fn marked_bins(occupied: u64, descending: bool) -> impl Iterator<Item = usize> {
+    let mut rest = occupied;
+    core::iter::from_fn(move || {
+        if rest == 0 {
+            return None;
+        }
+        let i = if descending {
+            63 - rest.leading_zeros()
+        } else {
+            rest.trailing_zeros()
+        };
+        rest &= !(1 << i);
+        Some(i as usize)
+    })
+}
+
 /// |rate| (Q16 rad/s) `need` samples into bin `i`, which holds `m` (`need <= m < 2^32`),
 /// walking it up (towards higher |rate|) or down; linear in `log2 |r|` within the bin.
 fn bin_rate_q16(i: usize, need: u64, m: u64, up: bool) -> i64 {
@@ -1408,11 +1462,16 @@ pub(crate) fn split_variance(variance: u64, [n, p]: [u64; 2]) -> u64 {
 /// roll, the ground under translation), its pull towards 0 is kept too: the region does not
 /// know its direction.
 #[inline(never)]
-fn majority_median([neg, pos]: [&[u32; BINS]; 2], [n, p]: [u64; 2], signed: i64) -> Option<i64> {
-    let (bins, positive, majority) = if p >= n {
-        (pos, true, p)
+fn majority_median(
+    [neg, pos]: [&[u32; BINS]; 2],
+    [occupied_neg, occupied_pos]: [u64; 2],
+    [n, p]: [u64; 2],
+    signed: i64,
+) -> Option<i64> {
+    let (bins, occupied, positive, majority) = if p >= n {
+        (pos, occupied_pos, true, p)
     } else {
-        (neg, false, n)
+        (neg, occupied_neg, false, n)
     };
     let total = n + p;
     if majority == 0 || (total - majority) << SETTLED_MINORITY_LOG2 > total {
@@ -1420,8 +1479,8 @@ fn majority_median([neg, pos]: [&[u32; BINS]; 2], [n, p]: [u64; 2], signed: i64)
     }
     let target = majority / 2;
     let mut acc = 0u64;
-    for (i, &m) in bins.iter().enumerate() {
-        let m = u64::from(m);
+    for i in marked_bins(occupied, false) {
+        let m = u64::from(bins.get(i).copied().unwrap_or(0));
         if m > 0 && acc + m >= target {
             let v = bin_rate_q16(i, target.saturating_sub(acc), m, true);
             let v = if positive { v } else { -v };
@@ -1708,6 +1767,63 @@ mod tests {
             let random = u64::from(RANDOM_AGREEMENT) * sample;
             let by_division = agreement_by_division(d, t, random);
             proptest::prop_assert_eq!(sign_agreement(neg, pos, sample), by_division);
+        }
+    }
+
+    /// The halving visits only the bins marked occupied: over random decodes and periods (some
+    /// longer than `tau ln 2`, which halve more than once), every histogram equals a copy
+    /// halved bin by bin, its mass is its bins' sum, and a bin without its mark is 0.
+    #[test]
+    fn the_halving_over_occupied_bins_equals_halving_every_bin() {
+        let mut f = field();
+        let mut plain = f.hist;
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |n: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % n
+        };
+        for _ in 0..3_000 {
+            for _ in 0..next(12) {
+                let pop = if next(4) == 0 {
+                    Population::Slow
+                } else {
+                    Population::Fast
+                };
+                let region = next(REGIONS as u64) as usize;
+                let log2 = log2_rate(10 + next(4_000)) + (next(1 << 16) as i32 - (1 << 15));
+                let positive = next(3) != 0;
+                f.add_in(pop, region, log2, positive);
+                let (bin, w) = (bin_of(log2), f.weight[pop as usize]);
+                let b = &mut plain[pop as usize][region][usize::from(positive)][bin];
+                *b = b.saturating_add(w);
+            }
+            let weights = f.weight;
+            f.age();
+            for (p, (before, after)) in weights.iter().zip(f.weight).enumerate() {
+                // The weight grew by less than a factor of 2 per period here, so a smaller
+                // weight than before means one halving or more: by the ratio's octaves.
+                let grown = (u64::from(*before) * u64::from(f.grow_half_q31[p])) >> 30;
+                let shift = 64 - u64::from(after).leading_zeros();
+                let shift = (64 - grown.leading_zeros()).saturating_sub(shift);
+                for b in plain[p].iter_mut().flatten().flatten() {
+                    *b = b.checked_shr(shift).unwrap_or(0);
+                }
+            }
+            assert_eq!(f.hist, plain);
+        }
+        for p in 0..2 {
+            for r in 0..REGIONS {
+                for sign in 0..2 {
+                    let bins = &f.hist[p][r][sign];
+                    let sum: u64 = bins.iter().map(|&b| u64::from(b)).sum();
+                    assert_eq!(f.mass[p][r][sign], sum);
+                    for (i, &b) in bins.iter().enumerate() {
+                        assert!(b == 0 || f.occupied[p][r][sign] & (1 << i) != 0);
+                    }
+                }
+            }
         }
     }
 
