@@ -41,7 +41,8 @@ pub struct RunFlags {
     #[arg(long, default_value_t = 2)]
     pub stride: u16,
     /// With `--layout dense`: only a `W x H` window at `(X0, Y0)` of the sensor, as a board with
-    /// little RAM runs it (`X0:Y0:W:H`, e.g. the STM32F405's `77:116:192:28`).
+    /// little RAM runs it (`X0:Y0:W:H`, e.g. the STM32F405 default `0:122:346:15`: the full
+    /// width of a DAVIS346 on its rows 122-136).
     #[arg(long, value_parser = parse_window)]
     pub window: Option<(u16, u16, u16, u16)>,
     /// Readout.
