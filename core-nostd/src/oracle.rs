@@ -2161,13 +2161,19 @@ impl OracleField {
         };
         let agree = (self.established || total >= settled_samples)
             && (total - majority) * f64::from(1u32 << SETTLED_MINORITY_LOG2) <= total;
+        // Quartiles an octave or more apart: the other sign is the far side of the majority's
+        // spread, and the median is at rank half of all decodes (`field::WIDE_MAJORITY_RATIO`).
+        let wide = (q1 < 0.0) == (q3 < 0.0)
+            && q1.abs().max(q3.abs())
+                >= q1.abs().min(q3.abs()) * crate::readout::field::WIDE_MAJORITY_RATIO as f64;
+        let rank = if wide { total / 2.0 } else { majority / 2.0 };
         let mut acc = 0.0;
         let majority_median = bins
             .iter()
             .enumerate()
             .take_while(|_| agree)
             .find_map(|(i, &m)| {
-                let at = (majority / 2.0 - acc) / m;
+                let at = (rank - acc) / m;
                 acc += m;
                 (m > 0.0 && at <= 1.0).then(|| sign * rate(i, at))
             })

@@ -186,6 +186,15 @@ pub struct Coverage {
 /// 126 window (0.23 f) it helps as on the whole sensor (0.48 f).
 pub const FAR_ROWS_Q12: i64 = 410;
 
+/// How far apart a region's quartile rates (same sign) must lie before a region whose decodes
+/// agree in sign takes its other sign's decodes for the far side of the majority's spread (and
+/// reads its median time difference): an octave. Where the majority's median applies, at most a
+/// quarter of the decodes take the other sign, so both quartiles lie in the majority. A factor of 2 tells a smooth texture's spread from the
+/// skyline's aliases on the scenes measured (`docs/readout-notes.md`; over the majority's own
+/// quartiles, 1.5 octaves left value noise at 0.4 rad/s as it was, half an octave read the
+/// skyline 2 % fast).
+pub const WIDE_MAJORITY_RATIO: u64 = 2;
+
 /// Histogram bins per region and sign (at most 64: [`Field`] marks the occupied ones in a
 /// `u64`).
 pub const BINS: usize = 64;
@@ -975,7 +984,15 @@ impl Field {
         #[cfg(not(test))]
         let settled_q16 = SETTLED_SAMPLES_Q16;
         let median = if self.established || samples_q16 >= u64::from(settled_q16) {
-            majority_median([neg, pos], occupied, masses, signed_median).unwrap_or(signed_median)
+            // The quartiles lie in the majority whenever its median applies (at most a quarter
+            // of the decodes take the other sign).
+            let (slow, fast) = (
+                q1.unsigned_abs().min(q3.unsigned_abs()),
+                q1.unsigned_abs().max(q3.unsigned_abs()),
+            );
+            let wide = (q1 < 0) == (q3 < 0) && fast >= slow.saturating_mul(WIDE_MAJORITY_RATIO);
+            majority_median([neg, pos], occupied, masses, signed_median, wide)
+                .unwrap_or(signed_median)
         } else {
             signed_median
         };
@@ -1461,12 +1478,23 @@ pub(crate) fn split_variance(variance: u64, [n, p]: [u64; 2]) -> u64 {
 /// signed median stays. Where the signs are mixed (the aperture problem under pitch and
 /// roll, the ground under translation), its pull towards 0 is kept too: the region does not
 /// know its direction.
+///
+/// Where the majority's decodes are `wide` (the region's quartiles [`WIDE_MAJORITY_RATIO`] or
+/// more apart), the other sign's are taken for the far side of that spread instead: over a smooth
+/// texture a pixel's onset comes a random part of one contrast step's travel time late, so the
+/// time differences spread around the crossing time and those below 0 decode the other sign.
+/// The median of the time differences is then the majority's decode at rank half of *all*
+/// decodes, counted from the slowest (value noise at 0.4 / 0.8 rad/s read 0.91 / 0.89 of the
+/// turn, now 0.98 / 0.98; see `docs/readout-notes.md`). Over sharp edges the majority is
+/// narrower and the few others are aliases of repeated structure, which this would read as
+/// late crossings (1-2 % fast).
 #[inline(never)]
 fn majority_median(
     [neg, pos]: [&[u32; BINS]; 2],
     [occupied_neg, occupied_pos]: [u64; 2],
     [n, p]: [u64; 2],
     signed: i64,
+    wide: bool,
 ) -> Option<i64> {
     let (bins, occupied, positive, majority) = if p >= n {
         (pos, occupied_pos, true, p)
@@ -1477,7 +1505,7 @@ fn majority_median(
     if majority == 0 || (total - majority) << SETTLED_MINORITY_LOG2 > total {
         return None;
     }
-    let target = majority / 2;
+    let target = if wide { total / 2 } else { majority / 2 };
     let mut acc = 0u64;
     for i in marked_bins(occupied, false) {
         let m = u64::from(bins.get(i).copied().unwrap_or(0));
@@ -2143,6 +2171,24 @@ mod tests {
         // majority: 5 % low here.
         let w = rad_s(signed).expect("a rotation");
         assert!(w < 0.975 && w > 0.9, "signed median {w}");
+    }
+
+    #[test]
+    fn a_majority_spread_over_an_octave_reads_the_median_time_difference() {
+        // Twenty crossings of one edge at 1 rad/s whose time differences spread evenly from
+        // -0.37 to 2.48 times the true one (a smooth texture's onsets): three come out with the
+        // other sign, the region's quartiles lie more than an octave apart. Their median
+        // time difference (1.0-1.13 of the true one) is a rate of 0.89-1.02.
+        let rates: [i64; 20] = core::array::from_fn(|k| {
+            let dt_milli = -370 + 150 * k as i64;
+            1_000_000 / dt_milli
+        });
+        let (majority, signed) = with_and_without_majority(&rates, 1);
+        let v = rad_s(majority).expect("a rotation");
+        assert!(v > 0.87 && v < 1.03, "median time difference {v}");
+        // The signed median counts the other sign as slower than all of the majority: 0.63-0.7.
+        let w = rad_s(signed).expect("a rotation");
+        assert!(w < 0.72, "signed median {w}");
     }
 
     #[test]
