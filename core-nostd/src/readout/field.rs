@@ -188,11 +188,10 @@ pub const FAR_ROWS_Q12: i64 = 410;
 
 /// How far apart a region's quartile rates (same sign) must lie before a region whose decodes
 /// agree in sign takes its other sign's decodes for the far side of the majority's spread (and
-/// reads its median time difference): an octave. Where the majority's median applies, at most a
-/// quarter of the decodes take the other sign, so both quartiles lie in the majority. A factor of 2 tells a smooth texture's spread from the
-/// skyline's aliases on the scenes measured (`docs/readout-notes.md`; over the majority's own
-/// quartiles, 1.5 octaves left value noise at 0.4 rad/s as it was, half an octave read the
-/// skyline 2 % fast).
+/// reads its median time difference): an octave. A factor of 2 tells a smooth texture's spread
+/// from the skyline's aliases on the scenes measured (`docs/readout-notes.md`; over the
+/// majority's own quartiles, 1.5 octaves left value noise at 0.4 rad/s as it was, half an
+/// octave read the skyline 2 % fast).
 pub const WIDE_MAJORITY_RATIO: u64 = 2;
 
 /// Histogram bins per region and sign (at most 64: [`Field`] marks the occupied ones in a
@@ -984,14 +983,7 @@ impl Field {
         #[cfg(not(test))]
         let settled_q16 = SETTLED_SAMPLES_Q16;
         let median = if self.established || samples_q16 >= u64::from(settled_q16) {
-            // The quartiles lie in the majority whenever its median applies (at most a quarter
-            // of the decodes take the other sign).
-            let (slow, fast) = (
-                q1.unsigned_abs().min(q3.unsigned_abs()),
-                q1.unsigned_abs().max(q3.unsigned_abs()),
-            );
-            let wide = (q1 < 0) == (q3 < 0) && fast >= slow.saturating_mul(WIDE_MAJORITY_RATIO);
-            majority_median([neg, pos], occupied, masses, signed_median, wide)
+            majority_median([neg, pos], occupied, masses, [q1, signed_median, q3])
                 .unwrap_or(signed_median)
         } else {
             signed_median
@@ -1370,11 +1362,8 @@ fn fit_intercept(sums: &[HalfSums; 2], used: [bool; 2]) -> Option<(i64, u64)> {
 /// 0. Keeps the invariant of [`Field`]'s `occupied`: a bin whose mark is clear is 0.
 fn shift_bins(bins: &mut [u32; BINS], occupied: &mut u64, shift: u32) -> u64 {
     let mut sum = 0u64;
-    let mut rest = *occupied;
-    while rest != 0 {
-        let i = rest.trailing_zeros();
-        rest &= rest - 1;
-        if let Some(b) = bins.get_mut(i as usize) {
+    for i in marked_bins(*occupied, false) {
+        if let Some(b) = bins.get_mut(i) {
             *b = b.checked_shr(shift).unwrap_or(0);
             if *b == 0 {
                 *occupied &= !(1 << i);
@@ -1394,11 +1383,15 @@ fn marked_bins(occupied: u64, descending: bool) -> impl Iterator<Item = usize> {
             return None;
         }
         let i = if descending {
-            63 - rest.leading_zeros()
+            let i = 63 - rest.leading_zeros();
+            rest ^= 1 << i;
+            i
         } else {
-            rest.trailing_zeros()
+            // Clears the lowest set bit without a 64-bit shift.
+            let i = rest.trailing_zeros();
+            rest &= rest - 1;
+            i
         };
-        rest &= !(1 << i);
         Some(i as usize)
     })
 }
@@ -1463,10 +1456,11 @@ pub(crate) fn split_variance(variance: u64, [n, p]: [u64; 2]) -> u64 {
     whole.saturating_add(((variance & 0xFFFF) * factor_q16) >> 16)
 }
 
-/// The median rate of a region's majority sign (Q16 rad/s, signed; histograms `[neg, pos]` and
-/// their masses `[n, p]`), when at most a quarter of its decodes ([`SETTLED_MINORITY_LOG2`])
-/// take the other sign and it lies within half of the region's signed median `signed` (same
-/// sign); else `None`.
+/// The median rate of a region's majority sign (Q16 rad/s, signed; histograms `[neg, pos]`, their
+/// marks and their masses `[n, p]`), when at most a quarter of its decodes
+/// ([`SETTLED_MINORITY_LOG2`]) take the other sign and it lies within half of the region's
+/// signed median `signed` (same sign; `[q1, signed, q3]` the region's signed quartiles); else
+/// `None`.
 ///
 /// Where a region's decodes agree in sign, the few of the other sign are timing errors: a
 /// TRG pixel that fires before its FAC neighbour for the same edge (threshold mismatch,
@@ -1479,8 +1473,9 @@ pub(crate) fn split_variance(variance: u64, [n, p]: [u64; 2]) -> u64 {
 /// roll, the ground under translation), its pull towards 0 is kept too: the region does not
 /// know its direction.
 ///
-/// Where the majority's decodes are `wide` (the region's quartiles [`WIDE_MAJORITY_RATIO`] or
-/// more apart), the other sign's are taken for the far side of that spread instead: over a smooth
+/// Where the majority's decodes are wide (the region's quartiles [`WIDE_MAJORITY_RATIO`] or more
+/// apart; both lie in the majority when at most a quarter take the other sign), the other
+/// sign's are taken for the far side of that spread instead: over a smooth
 /// texture a pixel's onset comes a random part of one contrast step's travel time late, so the
 /// time differences spread around the crossing time and those below 0 decode the other sign.
 /// The median of the time differences is then the majority's decode at rank half of *all*
@@ -1493,8 +1488,7 @@ fn majority_median(
     [neg, pos]: [&[u32; BINS]; 2],
     [occupied_neg, occupied_pos]: [u64; 2],
     [n, p]: [u64; 2],
-    signed: i64,
-    wide: bool,
+    [q1, signed, q3]: [i64; 3],
 ) -> Option<i64> {
     let (bins, occupied, positive, majority) = if p >= n {
         (pos, occupied_pos, true, p)
@@ -1505,6 +1499,11 @@ fn majority_median(
     if majority == 0 || (total - majority) << SETTLED_MINORITY_LOG2 > total {
         return None;
     }
+    let (slow, fast) = (
+        q1.unsigned_abs().min(q3.unsigned_abs()),
+        q1.unsigned_abs().max(q3.unsigned_abs()),
+    );
+    let wide = (q1 < 0) == (q3 < 0) && fast >= slow.saturating_mul(WIDE_MAJORITY_RATIO);
     let target = if wide { total / 2 } else { majority / 2 };
     let mut acc = 0u64;
     for i in marked_bins(occupied, false) {
@@ -1798,13 +1797,22 @@ mod tests {
         }
     }
 
-    /// The halving visits only the bins marked occupied: over random decodes and periods (some
-    /// longer than `tau ln 2`, which halve more than once), every histogram equals a copy
-    /// halved bin by bin, its mass is its bins' sum, and a bin without its mark is 0.
+    /// The halving visits only the bins marked occupied: over random decodes, with 1 ms periods
+    /// and with 12 ms ones (longer than the paper's units' `tau ln 2`: often two halvings at
+    /// once), every histogram equals a copy halved bin by bin, its mass is its bins' sum, and a
+    /// bin without its mark is 0.
     #[test]
     fn the_halving_over_occupied_bins_equals_halving_every_bin() {
-        let mut f = field();
+        for period_us in [1_000, 12_000] {
+            halving_over_occupied_bins(period_us);
+        }
+    }
+
+    /// [`the_halving_over_occupied_bins_equals_halving_every_bin`] with `period_us`.
+    fn halving_over_occupied_bins(period_us: u32) {
+        let mut f = field_over((0, 259), period_us);
         let mut plain = f.hist;
+        let mut halvings = [0u32; 4];
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         let mut next = |n: u64| {
             seed ^= seed << 13;
@@ -1830,17 +1838,22 @@ mod tests {
             let weights = f.weight;
             f.age();
             for (p, (before, after)) in weights.iter().zip(f.weight).enumerate() {
-                // The weight grew by less than a factor of 2 per period here, so a smaller
-                // weight than before means one halving or more: by the ratio's octaves.
+                // The halvings: the octaves between the grown weight and the one kept.
                 let grown = (u64::from(*before) * u64::from(f.grow_half_q31[p])) >> 30;
                 let shift = 64 - u64::from(after).leading_zeros();
                 let shift = (64 - grown.leading_zeros()).saturating_sub(shift);
                 for b in plain[p].iter_mut().flatten().flatten() {
                     *b = b.checked_shr(shift).unwrap_or(0);
                 }
+                if let Some(h) = halvings.get_mut(shift as usize) {
+                    *h += 1;
+                }
             }
             assert_eq!(f.hist, plain);
         }
+        // Both cases ran: single halvings, and double ones with the longer period.
+        assert!(halvings[1] > 0);
+        assert_eq!(halvings[2] > 0, period_us > 10_000 * 7 / 10);
         for p in 0..2 {
             for r in 0..REGIONS {
                 for sign in 0..2 {
@@ -1882,6 +1895,11 @@ mod tests {
 
     /// [`field`] with units on the rows `rows` alone (first, last).
     fn field_over_rows(rows: (u16, u16)) -> Field {
+        field_over(rows, 1_000)
+    }
+
+    /// [`field_over_rows`] aged by `period_us` per output.
+    fn field_over(rows: (u16, u16), period_us: u32) -> Field {
         let g = FieldGeometry::spanning(173 << 16, 130 << 16, 226 << 16, (0, 345), rows);
         let coverage = Coverage {
             paired_bands: 4,
@@ -1891,7 +1909,7 @@ mod tests {
             g,
             FieldSettings::DEFAULT,
             [10_000, 100_000],
-            1_000,
+            period_us,
             coverage,
         )
     }
