@@ -461,8 +461,11 @@ pub struct OracleYaw<L: crate::layout::Layout> {
 struct OracleStrideChoice {
     /// Decodes `[near, layout][region][negative, positive]`.
     counts: [[[f64; 2]; crate::readout::field::REGIONS]; 2],
-    /// Whether the near units are decoded.
+    /// Whether the sign counts choose the near units.
     near: bool,
+    /// Whether the readout's answer says the image moves fast
+    /// ([`crate::readout::stride_choice::FAST_IMAGE_SPEED_PX_S`]).
+    fast: bool,
     /// Time since the start (µs).
     settled: f64,
     /// Outputs since the last look.
@@ -475,8 +478,32 @@ impl OracleStrideChoice {
         Self {
             counts: [[[0.0; 2]; crate::readout::field::REGIONS]; 2],
             near,
+            fast: false,
             settled: 0.0,
             outputs: 0,
+        }
+    }
+
+    /// Whether the near units are decoded: the sign counts' choice, unless the image moves
+    /// fast.
+    fn near(&self) -> bool {
+        self.near && !self.fast
+    }
+
+    /// The readout's answer at an output (`(rad/s, flags)`) with the focal length `focal` (px):
+    /// whether the image moves fast at the principal point, with the fixed-point readouts'
+    /// hysteresis.
+    fn follow_answer(&mut self, (yaw, flags): (f64, u8), focal: f64) {
+        use crate::readout::stride_choice::{FAST_IMAGE_SPEED_PX_S, SLOW_AGAIN_PX_S};
+        let px_s = if flags & crate::flags::NO_EVIDENCE == 0 {
+            yaw.abs() * focal
+        } else {
+            0.0
+        };
+        if px_s >= FAST_IMAGE_SPEED_PX_S as f64 {
+            self.fast = true;
+        } else if px_s < SLOW_AGAIN_PX_S as f64 {
+            self.fast = false;
         }
     }
 
@@ -699,7 +726,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             // The warm-up's bursts time the pixels waking up (the fixed-point readout's rule).
             return;
         }
-        let (decoded, stride) = if self.stride.near {
+        let (decoded, stride) = if self.stride.near() {
             (near, 1.0)
         } else {
             (far, f64::from(self.layout.stride()))
@@ -733,7 +760,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         // and their reach), of an onset the slow units decode too: beyond the slow units' floor.
         let reach = self.p.reach_s();
         if pop == 0 && dt_s >= reach / 2.0 {
-            let slow = if self.stride.near {
+            let slow = if self.stride.near() {
                 decode_slow(near_lr, near_rl)
             } else {
                 decode_slow(lr, rl)
@@ -760,6 +787,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         while next < t || (inclusive && next <= t) {
             self.stride.age(self.period);
             let value = self.gate.output(&mut self.fields, self.twins);
+            self.stride.follow_answer(value, self.focal);
             out.push(sample(next, self.last_event, value));
             next += self.period;
         }
@@ -1136,7 +1164,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             }
             self.stride.age(self.period);
             // The slow units read the chosen stride's FAC pixel from here on.
-            let near = self.pops.len() > 2 && self.stride.near;
+            let near = self.pops.len() > 2 && self.stride.near();
             let px = if near {
                 1
             } else {
@@ -1148,6 +1176,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
                 slow.stride_since = next;
             }
             let value = self.gate.output(&mut self.fields, self.twins);
+            self.stride.follow_answer(value, self.focal);
             out.push(sample(next, self.last_event, value));
             next += self.period;
         }
@@ -1531,7 +1560,7 @@ impl SpikePopulation {
         let (x, y) = target.layout.pixel(cell);
         let dx = f64::from(x) - target.cx;
         let g = target.focal + dx * dx / target.focal;
-        let near_chosen = target.stride.near;
+        let near_chosen = target.stride.near();
         // The layout's units take `stride` times as long as the near units over one pixel.
         let stride = f64::from(target.layout.stride());
         // The distance (px) this input was timed over.

@@ -35,7 +35,8 @@
 //! over, [`NetSink::NEAR`]). Across one pixel an edge takes half as long, so they answer sooner
 //! after the motion changes and time edges half as fast; where onsets do not mark edges
 //! (smooth textures) their decodes take either sign. They are decoded instead of the layout's
-//! units while their decodes agree in sign at least as much (see
+//! units while their decodes agree in sign at least as much, and while the readout's answer
+//! says the image moves slower than a pixel per 2.1 ms (see
 //! [`stride_choice`](super::stride_choice)).
 //!
 //! # Edges that move vertically
@@ -61,7 +62,7 @@ use fixed::types::{I16F16, U16F16};
 use super::aperture::{self, Around};
 use super::field::{Field, FieldSettings, Population};
 use super::shared::{
-    field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder,
+    answered, field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder,
 };
 use super::stride_choice::{Stride, StrideChoice};
 use super::Readout;
@@ -429,6 +430,9 @@ impl NetSink for Calibrated {
 impl Readout for Calibrated {
     fn output(&mut self, _t_us: u32) -> (I16F16, u8) {
         self.stride.age(self.cal.period_us);
-        self.gate.output(&mut self.field)
+        let out = self.gate.output(&mut self.field);
+        self.stride
+            .follow_answer(answered(out), self.rates.focal_bits());
+        out
     }
 }

@@ -232,6 +232,11 @@ impl Answers {
     }
 }
 
+/// The yaw rate an output answers (I16F16 bits), if it is not flagged "no evidence".
+pub fn answered((yaw, flags): (I16F16, u8)) -> Option<i32> {
+    (flags & flags::NO_EVIDENCE == 0).then_some(yaw.to_bits())
+}
+
 /// Whether a crossing of `2^log2_dt_s` s lies within an octave below the paper's units' reach
 /// `2^reach_log2_s` s (half of it or more; both Q16.16): a decode of that crossing lies within
 /// an octave above their floor, past the end of the slow units' histograms
@@ -306,6 +311,11 @@ impl RateDecoder {
         self.log2_stride
             .saturating_sub(log2_dt_s)
             .saturating_sub(log2_q16(g, 16))
+    }
+
+    /// The focal length (px, U16F16 bits).
+    pub fn focal_bits(&self) -> u32 {
+        self.focal_bits
     }
 
     /// `log2` of the layout's stride (px, Q16.16): how much longer the layout's units' crossing

@@ -57,7 +57,8 @@
 //! pipeline runs a third network of the paper's units with their FAC pixel one pixel from the TRG
 //! pixel ([`crate::network::Network::near_units`]), whose spikes are decoded the same way (the rate
 //! then reads over one pixel), and the same rule ([`stride_choice`](super::stride_choice)), fed
-//! from both networks' decodes, chooses between them. One thing differs: a drive decoded from
+//! from both networks' decodes and this readout's answers, chooses between them. One thing
+//! differs: a drive decoded from
 //! spikes is good to about 0.1 %, and the own trace it is divided by, rebuilt from decoded onsets,
 //! to a few per cent, so close to its ceiling (`w_T` times the own trace) the decoded crossing time
 //! is mostly error. With the near units chosen they are therefore read only for drives up to
@@ -143,8 +144,8 @@ use super::aperture::{self, Around};
 use super::calibrated::{has_near, Calibration, SLOW_TAU_A_US};
 use super::field::{Field, Population};
 use super::shared::{
-    field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder, DOMINANCE_LOG2,
-    LOG2_1E6, WARMUP_US,
+    answered, field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder,
+    DOMINANCE_LOG2, LOG2_1E6, WARMUP_US,
 };
 use super::stride_choice::{Stride, StrideChoice};
 use super::{Readout, Side};
@@ -1544,7 +1545,11 @@ impl<L: Layout> Readout for Spikes<'_, L> {
         target.stride.age(self.cal.period_us);
         let near = self.near.is_some() && target.stride.choice() == Stride::Near;
         target.slow_fac.follow(near, t_us);
-        self.gate.output(&mut target.field)
+        let out = self.gate.output(&mut target.field);
+        target
+            .stride
+            .follow_answer(answered(out), target.rates.focal_bits());
+        out
     }
 
     fn slow_units_near(&self) -> bool {

@@ -28,12 +28,34 @@
 //! not read at all). Over the first [`SETTLE_US`], and while neither stride agrees at all, the
 //! choice stays as it was (at the start: near, on layouts that have near units,
 //! [`super::calibrated::has_near`]).
+//!
+//! # Fast motion
+//! Across one pixel a fast edge's crossing is short against the jitter of its onsets (a random
+//! part of a contrast step's travel at each pixel), which the layout's stride halves. While the
+//! readout's own answer says the image moves at least [`FAST_IMAGE_SPEED_PX_S`] at the
+//! principal point (one pixel in 2.1 ms, the fastest crossing the spike readout reads from
+//! the near units, [`super::spikes::NEAR_DRIVE_SHARE_LOG2`]), the layout's units decode whatever
+//! the sign counts say, until it falls below [`SLOW_AGAIN_PX_S`] or the readout has no
+//! evidence. Constant turns over the skyline (`host-sim synth --motion constant`, seed 11, a
+//! DAVIS346) at 3 / 4 / 6 / 8 rad/s read 0.97 / 0.90 / 0.78 / 0.72 of the turn with the near
+//! units, 0.99 / 0.97 / 0.91 / 0.88 with the layout's; below 2 rad/s the near units read as
+//! well, and answer sooner at a turn's start and reversals. The sign counts go on meanwhile.
 
 use super::field::{sign_agreement, REGIONS};
 use crate::exp_table::{scale_q31, ExpDecay};
 
 /// Memory of the sign counts (µs).
 pub const MEMORY_US: u32 = 1_000_000;
+
+/// Image speed at the principal point (px/s, from the readout's answer) from which the
+/// layout's units decode: one pixel in 2.1 ms (`tau_F ln(10/9)` for the paper's units), 2.1
+/// rad/s on a DAVIS346 (f = 226 px). See "Fast motion".
+pub const FAST_IMAGE_SPEED_PX_S: u64 = 476;
+
+/// Image speed (px/s) below which the sign counts choose again: 3/4 of
+/// [`FAST_IMAGE_SPEED_PX_S`], so that an answer that hovers about it does not switch strides
+/// at every output.
+pub const SLOW_AGAIN_PX_S: u64 = FAST_IMAGE_SPEED_PX_S * 3 / 4;
 
 /// Time (µs) from the start before the rule changes the choice: each pixel's first onsets
 /// after the start come from the level the sensor started with, not from an edge.
@@ -75,8 +97,10 @@ pub enum Stride {
 pub struct StrideChoice {
     /// Decodes `[stride][region][sign]` (sign 1 = positive), leaky, Q8 samples.
     counts_q8: [[[u32; 2]; REGIONS]; 2],
-    /// The current choice.
+    /// The sign counts' choice.
     choice: Stride,
+    /// Whether the readout's answer says the image moves fast ("Fast motion").
+    fast: bool,
     /// Time since the start (µs, up to [`SETTLE_US`]).
     settled_us: u32,
     /// Outputs since the last look, and their time (µs).
@@ -91,15 +115,35 @@ impl StrideChoice {
         Self {
             counts_q8: [[[0; 2]; REGIONS]; 2],
             choice: if near { Stride::Near } else { Stride::Layout },
+            fast: false,
             settled_us: 0,
             outputs: 0,
             since_look_us: 0,
         }
     }
 
-    /// The units to decode now.
+    /// The units to decode now: the layout's while the image moves fast, else the sign
+    /// counts' choice.
     pub fn choice(&self) -> Stride {
-        self.choice
+        if self.fast {
+            Stride::Layout
+        } else {
+            self.choice
+        }
+    }
+
+    /// The readout's answer at an output: `yaw` in rad/s (I16F16 bits; `None`: no evidence),
+    /// with the focal length `focal_bits` (px, U16F16 bits). It says how fast the image
+    /// moves at the principal point (`|yaw| f` px/s): see "Fast motion".
+    pub fn follow_answer(&mut self, yaw: Option<i32>, focal_bits: u32) {
+        let px_s = yaw.map_or(0, |w| {
+            (u64::from(w.unsigned_abs()) * u64::from(focal_bits)) >> 32
+        });
+        if px_s >= FAST_IMAGE_SPEED_PX_S {
+            self.fast = true;
+        } else if px_s < SLOW_AGAIN_PX_S {
+            self.fast = false;
+        }
     }
 
     /// Whether onsets at row `y` are counted (both strides' FAC pixels are read there).
@@ -281,6 +325,40 @@ mod tests {
         assert_eq!(c.counts_q8[0][0][1], 100 << 8);
         c.age(1_000);
         assert!(c.counts_q8[0][0][1] < 100 << 8);
+    }
+
+    #[test]
+    fn fast_answers_choose_the_layout_units_until_they_slow_down() {
+        // f = 226 px: 2.1 rad/s is 476 px/s, 1.58 rad/s 357 px/s.
+        let focal = 226 << 16;
+        let rad_s = |w: f64| Some((w * 65_536.0) as i32);
+        let mut c = StrideChoice::new(true);
+        c.follow_answer(rad_s(2.0), focal);
+        assert_eq!(c.choice(), Stride::Near, "below the fast speed");
+        c.follow_answer(rad_s(-2.2), focal);
+        assert_eq!(c.choice(), Stride::Layout, "either sign");
+        c.follow_answer(rad_s(1.7), focal);
+        assert_eq!(
+            c.choice(),
+            Stride::Layout,
+            "between the two speeds it stays"
+        );
+        c.follow_answer(rad_s(1.5), focal);
+        assert_eq!(c.choice(), Stride::Near);
+        c.follow_answer(rad_s(4.0), focal);
+        c.follow_answer(None, focal);
+        assert_eq!(c.choice(), Stride::Near, "no evidence: not fast");
+        // The sign counts' own choice is kept underneath.
+        decodes(&mut c, Stride::Layout, 0, 100, 100);
+        look_after(&mut c, SETTLE_US);
+        assert_eq!(c.choice(), Stride::Layout);
+        c.follow_answer(rad_s(4.0), focal);
+        c.follow_answer(rad_s(0.5), focal);
+        assert_eq!(c.choice(), Stride::Layout);
+        // A layout without near units: the layout's, whatever the answer.
+        let mut c = StrideChoice::new(false);
+        c.follow_answer(rad_s(0.1), focal);
+        assert_eq!(c.choice(), Stride::Layout);
     }
 
     #[test]
