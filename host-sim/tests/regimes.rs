@@ -323,7 +323,7 @@ fn constant_turn_gain(
 /// Slow constant turns over the skyline (sharp edges; 2 s, seed 5): once settled (from 1 s
 /// on), the calibrated readout's answers read 0.8-1.2 of the turn on average (today 0.97 /
 /// 0.95 of 0.05 / 0.07 rad/s). The slow units time these, the near ones where onsets mark
-/// edges. (Over a smooth texture the same turns read 0.66 / 0.54: README, "Slowest yaw rate
+/// edges. (Over a smooth texture the same turns read 0.77 / 0.69: README, "Slowest yaw rate
 /// measured".)
 #[test]
 fn slow_turns_over_a_skyline() {
