@@ -38,7 +38,7 @@
 //! the sign counts say, until it falls below [`SLOW_AGAIN_PX_S`] or the readout has no
 //! evidence. Constant turns over the skyline (`host-sim synth --motion constant`, seed 11, a
 //! DAVIS346) at 3 / 4 / 6 / 8 rad/s read 0.97 / 0.90 / 0.78 / 0.72 of the turn with the near
-//! units, 0.99 / 0.97 / 0.91 / 0.88 with the layout's; below 2 rad/s the near units read as
+//! units, 0.99 / 0.97 / 0.90 / 0.88 with the layout's; below 2 rad/s the near units read as
 //! well, and answer sooner at a turn's start and reversals. The sign counts go on meanwhile.
 
 use super::field::{sign_agreement, REGIONS};
