@@ -494,17 +494,13 @@ impl OracleStrideChoice {
     /// whether the image moves fast at the principal point, with the fixed-point readouts'
     /// hysteresis.
     fn follow_answer(&mut self, (yaw, flags): (f64, u8), focal: f64) {
-        use crate::readout::stride_choice::{FAST_IMAGE_SPEED_PX_S, SLOW_AGAIN_PX_S};
         let px_s = if flags & crate::flags::NO_EVIDENCE == 0 {
-            yaw.abs() * focal
+            // Whole px/s, as the fixed-point readouts compute it.
+            (yaw.abs() * focal) as u64
         } else {
-            0.0
+            0
         };
-        if px_s >= FAST_IMAGE_SPEED_PX_S as f64 {
-            self.fast = true;
-        } else if px_s < SLOW_AGAIN_PX_S as f64 {
-            self.fast = false;
-        }
+        self.fast = crate::readout::stride_choice::moves_fast(self.fast, px_s);
     }
 
     /// One decode of the paper's units (`near`: of the near units) in `region`, with its sign.

@@ -60,8 +60,8 @@
 //! from both networks' decodes and this readout's answers, chooses between them. One thing
 //! differs: a drive decoded from spikes is good to about 0.1 %, and the own trace it is divided
 //! by, rebuilt from decoded onsets, to a few per cent, so close to its ceiling (`w_T` times the
-//! own trace) the decoded crossing time is mostly error. With the near units chosen they are therefore read only for drives up to
-//! [`NEAR_DRIVE_SHARE_LOG2`] of the ceiling (a one-pixel crossing of at least 2.1 ms), and the
+//! own trace) the decoded crossing time is mostly error. With the near units chosen they are
+//! therefore read only for drives up to [`NEAR_DRIVE_SHARE_LOG2`] of the ceiling (a one-pixel crossing of at least 2.1 ms), and the
 //! layout's units only for the onsets that the near unit facing the same way decoded above it: one
 //! stride times each onset. Such an onset crossed one pixel faster than the floor, so its layout
 //! decode reads no slower than twice the floor over the stride: the near units' decodes kept are
@@ -1559,6 +1559,21 @@ impl<L: Layout> Readout for Spikes<'_, L> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The image speed from which the stride choice takes the layout's units is one pixel per
+    /// near units' floor for the paper's units (the crossing of [`NEAR_DRIVE_SHARE_LOG2`] of
+    /// the ceiling, `tau_F ln(10/9)`), to 1 %: one rule for "too fast to time across a pixel".
+    #[test]
+    fn the_fast_image_speed_is_a_pixel_per_near_floor() {
+        use crate::params::TdeParams;
+        use crate::readout::stride_choice::FAST_IMAGE_SPEED_PX_S;
+        let tau_s = f64::from(TdeParams::DEFAULT.tau_fac_us) * 1e-6;
+        let floor_s =
+            -tau_s * f64::from(NEAR_DRIVE_SHARE_LOG2) / 65_536.0 * core::f64::consts::LN_2;
+        let px_s = 1.0 / floor_s;
+        let off = (px_s / FAST_IMAGE_SPEED_PX_S as f64 - 1.0).abs();
+        assert!(off < 0.01, "{px_s:.1} px/s against {FAST_IMAGE_SPEED_PX_S}");
+    }
 
     /// A near cell whose unit 1 decoded the onset at 10 ms with `share` of its ceiling
     /// (`log2_w_trg`: `w_T` = 2; own trace 1.5).

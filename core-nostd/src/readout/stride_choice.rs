@@ -57,6 +57,13 @@ pub const FAST_IMAGE_SPEED_PX_S: u64 = 476;
 /// at every output.
 pub const SLOW_AGAIN_PX_S: u64 = FAST_IMAGE_SPEED_PX_S * 3 / 4;
 
+/// Whether the image moves fast after an answer of `px_s` (whole px/s at the principal point;
+/// 0 without evidence), given whether it did before: on from [`FAST_IMAGE_SPEED_PX_S`], off
+/// below [`SLOW_AGAIN_PX_S`], as it was between. The f64 oracle applies the same rule.
+pub fn moves_fast(was_fast: bool, px_s: u64) -> bool {
+    px_s >= FAST_IMAGE_SPEED_PX_S || (was_fast && px_s >= SLOW_AGAIN_PX_S)
+}
+
 /// Time (µs) from the start before the rule changes the choice: each pixel's first onsets
 /// after the start come from the level the sensor started with, not from an edge.
 pub const SETTLE_US: u32 = MEMORY_US / 4;
@@ -139,11 +146,7 @@ impl StrideChoice {
         let px_s = yaw.map_or(0, |w| {
             (u64::from(w.unsigned_abs()) * u64::from(focal_bits)) >> 32
         });
-        if px_s >= FAST_IMAGE_SPEED_PX_S {
-            self.fast = true;
-        } else if px_s < SLOW_AGAIN_PX_S {
-            self.fast = false;
-        }
+        self.fast = moves_fast(self.fast, px_s);
     }
 
     /// Whether onsets at row `y` are counted (both strides' FAC pixels are read there).
