@@ -36,7 +36,7 @@
 //! after the motion changes and time edges half as fast; where onsets do not mark edges
 //! (smooth textures) their decodes take either sign. They are decoded instead of the layout's
 //! units while their decodes agree in sign at least as much, and while the readout's answer
-//! says the image moves slower than a pixel per 2.1 ms (see
+//! says the image moves slower than a pixel per 2.8 ms (their floor is 2.1 ms; see
 //! [`stride_choice`](super::stride_choice)).
 //!
 //! # Edges that move vertically

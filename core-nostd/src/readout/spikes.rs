@@ -1560,19 +1560,22 @@ impl<L: Layout> Readout for Spikes<'_, L> {
 mod tests {
     use super::*;
 
-    /// The image speed from which the stride choice takes the layout's units is one pixel per
+    /// The image speed the stride choice's fast motion is measured against is one pixel per
     /// near units' floor for the paper's units (the crossing of [`NEAR_DRIVE_SHARE_LOG2`] of
     /// the ceiling, `tau_F ln(10/9)`), to 1 %: one rule for "too fast to time across a pixel".
     #[test]
-    fn the_fast_image_speed_is_a_pixel_per_near_floor() {
+    fn the_near_floor_image_speed_is_a_pixel_per_near_floor() {
         use crate::params::TdeParams;
-        use crate::readout::stride_choice::FAST_IMAGE_SPEED_PX_S;
+        use crate::readout::stride_choice::NEAR_FLOOR_IMAGE_SPEED_PX_S;
         let tau_s = f64::from(TdeParams::DEFAULT.tau_fac_us) * 1e-6;
         let floor_s =
             -tau_s * f64::from(NEAR_DRIVE_SHARE_LOG2) / 65_536.0 * core::f64::consts::LN_2;
         let px_s = 1.0 / floor_s;
-        let off = (px_s / FAST_IMAGE_SPEED_PX_S as f64 - 1.0).abs();
-        assert!(off < 0.01, "{px_s:.1} px/s against {FAST_IMAGE_SPEED_PX_S}");
+        let off = (px_s / NEAR_FLOOR_IMAGE_SPEED_PX_S as f64 - 1.0).abs();
+        assert!(
+            off < 0.01,
+            "{px_s:.1} px/s against {NEAR_FLOOR_IMAGE_SPEED_PX_S}"
+        );
     }
 
     /// A near cell whose unit 1 decoded the onset at 10 ms with `share` of its ceiling

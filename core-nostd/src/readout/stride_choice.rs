@@ -31,15 +31,18 @@
 //!
 //! # Fast motion
 //! Across one pixel a fast edge's crossing is short against the jitter of its onsets (a random
-//! part of a contrast step's travel at each pixel), which the layout's stride halves. While the
-//! readout's own answer says the image moves at least [`FAST_IMAGE_SPEED_PX_S`] at the
-//! principal point (one pixel in 2.1 ms, the fastest crossing the spike readout reads from
-//! the near units, [`super::spikes::NEAR_DRIVE_SHARE_LOG2`]), the layout's units decode whatever
-//! the sign counts say, until it falls below [`SLOW_AGAIN_PX_S`] or the readout has no
-//! evidence. Constant turns over the skyline (`host-sim synth --motion constant`, seed 11, a
-//! DAVIS346) at 3 / 4 / 6 / 8 rad/s read 0.97 / 0.90 / 0.78 / 0.72 of the turn with the near
-//! units, 0.99 / 0.97 / 0.90 / 0.88 with the layout's; below 2 rad/s the near units read as
-//! well, and answer sooner at a turn's start and reversals. The sign counts go on meanwhile.
+//! part of a contrast step's travel at each pixel), which the layout's stride halves, and the
+//! fastest crossings reach the near units' floor (one pixel in 2.1 ms,
+//! [`NEAR_FLOOR_IMAGE_SPEED_PX_S`]). While the readout's own answer says the image moves at
+//! least [`FAST_IMAGE_SPEED_PX_S`] at the principal point (3/4 of that speed, where a fifth of
+//! the one-pixel crossings reach the floor), the layout's units decode whatever the sign
+//! counts say, until it falls below [`SLOW_AGAIN_PX_S`] or the readout has no evidence.
+//! Constant turns over the skyline (`host-sim synth --motion constant`, seed 11, a DAVIS346)
+//! at 3 / 4 / 6 / 8 rad/s read 0.97 / 0.90 / 0.78 / 0.72 of the turn with the near units,
+//! 0.99 / 0.97 / 0.90 / 0.88 with the layout's; drone seed 304, turning at 1.8 rad/s while it
+//! pitches and rolls, 5.8 / 4.5 % RMSE / peak (spike readout 8.6 / 5.4 %). Below 1.5 rad/s
+//! the near units read as well, and answer sooner at a turn's start and reversals. The sign
+//! counts go on meanwhile.
 
 use super::field::{sign_agreement, REGIONS};
 use crate::exp_table::{scale_q31, ExpDecay};
@@ -47,10 +50,17 @@ use crate::exp_table::{scale_q31, ExpDecay};
 /// Memory of the sign counts (µs).
 pub const MEMORY_US: u32 = 1_000_000;
 
+/// Image speed at the principal point (px/s) at which an edge crosses one pixel in the near
+/// units' floor, 2.1 ms (`tau_F ln(10/9)` for the paper's units, the fastest crossing the
+/// spike readout reads from them): 2.1 rad/s on a DAVIS346 (f = 226 px).
+pub const NEAR_FLOOR_IMAGE_SPEED_PX_S: u64 = 476;
+
 /// Image speed at the principal point (px/s, from the readout's answer) from which the
-/// layout's units decode: one pixel in 2.1 ms (`tau_F ln(10/9)` for the paper's units), 2.1
-/// rad/s on a DAVIS346 (f = 226 px). See "Fast motion".
-pub const FAST_IMAGE_SPEED_PX_S: u64 = 476;
+/// layout's units decode: 3/4 of [`NEAR_FLOOR_IMAGE_SPEED_PX_S`], where the fastest fifth of
+/// the one-pixel crossings reach the near units' floor (onsets jitter: over the skyline at
+/// 0.8-2 rad/s a fifth of the one-pixel crossings read 1.31 times the image speed or more).
+/// One pixel per 2.8 ms, 1.58 rad/s on a DAVIS346. See "Fast motion".
+pub const FAST_IMAGE_SPEED_PX_S: u64 = NEAR_FLOOR_IMAGE_SPEED_PX_S * 3 / 4;
 
 /// Image speed (px/s) below which the sign counts choose again: 3/4 of
 /// [`FAST_IMAGE_SPEED_PX_S`], so that an answer that hovers about it does not switch strides
@@ -332,21 +342,21 @@ mod tests {
 
     #[test]
     fn fast_answers_choose_the_layout_units_until_they_slow_down() {
-        // f = 226 px: 2.1 rad/s is 476 px/s, 1.58 rad/s 357 px/s.
+        // f = 226 px: 1.58 rad/s is 357 px/s, 1.18 rad/s 267 px/s.
         let focal = 226 << 16;
         let rad_s = |w: f64| Some((w * 65_536.0) as i32);
         let mut c = StrideChoice::new(true);
-        c.follow_answer(rad_s(2.0), focal);
+        c.follow_answer(rad_s(1.5), focal);
         assert_eq!(c.choice(), Stride::Near, "below the fast speed");
-        c.follow_answer(rad_s(-2.2), focal);
+        c.follow_answer(rad_s(-1.7), focal);
         assert_eq!(c.choice(), Stride::Layout, "either sign");
-        c.follow_answer(rad_s(1.7), focal);
+        c.follow_answer(rad_s(1.25), focal);
         assert_eq!(
             c.choice(),
             Stride::Layout,
             "between the two speeds it stays"
         );
-        c.follow_answer(rad_s(1.5), focal);
+        c.follow_answer(rad_s(1.1), focal);
         assert_eq!(c.choice(), Stride::Near);
         c.follow_answer(rad_s(4.0), focal);
         c.follow_answer(None, focal);
