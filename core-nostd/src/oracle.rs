@@ -849,11 +849,11 @@ impl OracleGate {
                 field.established = self.answers.established();
                 field.recent_motion = self.answers.last_answer();
             }
-            let (now, recent_needed) = two_population_estimate(fields, twins);
+            let (now, recent_needed, stopped) = two_population_estimate(fields, twins);
             // In the fixed-point gate's units (Q16 rad/s; the estimate is clamped to 20).
-            let answer = self
-                .answers
-                .read(now.map(|v| (v * 65536.0) as i32), recent_needed);
+            let answer =
+                self.answers
+                    .read(now.map(|v| (v * 65536.0) as i32), recent_needed, stopped);
             self.last = now.filter(|_| answer);
         }
         self.phase = (self.phase + 1) % self.refresh;
@@ -874,8 +874,9 @@ impl OracleGate {
 /// agree more in sign per unit of its time constant (`twins == false`, a layout without twin
 /// units: that decodes more), the slow units' figure scaled up while their histograms fill
 /// ([`OracleField::fill`]); the slow units' value scaled by their recent share of decodes.
-/// Also whether it needed the readout's answer a moment ago ([`OracleField::reading`]).
-fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> (Option<f64>, bool) {
+/// Also whether it needed the readout's answer a moment ago, and whether its decodes stopped
+/// ([`OracleField::reading`]).
+fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> (Option<f64>, bool, bool) {
     let [fast, slow] = fields;
     let by = |f: &OracleField| {
         if twins {
@@ -885,8 +886,12 @@ fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> (Option<f6
         }
     };
     if by(fast) < by(slow) * slow.fill() {
-        let (estimate, recent_needed) = slow.reading();
-        (estimate.map(|v| v * slow.recent_share()), recent_needed)
+        let (estimate, recent_needed, stopped) = slow.reading();
+        (
+            estimate.map(|v| v * slow.recent_share()),
+            recent_needed,
+            stopped,
+        )
     } else {
         fast.reading()
     }
@@ -1969,26 +1974,25 @@ impl OracleField {
         }
     }
 
-    /// The rotation the field shows, if it shows one, and whether it needed the readout's
-    /// answer a moment ago to show it (the fixed-point field's `FieldReading::recent_needed`).
-    pub fn reading(&self) -> (Option<f64>, bool) {
-        let mut recent_needed = false;
-        let estimate = self.estimate_noting(&mut recent_needed);
-        (estimate, recent_needed && estimate.is_some())
-    }
-
-    /// [`OracleField::reading`]'s rotation, setting `recent_needed` when the bands were chosen
-    /// only because the readout answered a moment ago.
-    fn estimate_noting(&self, recent_needed: &mut bool) -> Option<f64> {
+    /// The rotation the field shows, if it shows one; whether it needed the readout's answer a
+    /// moment ago to show it (the fixed-point field's `FieldReading::recent_needed`); and
+    /// whether it shows none because its decodes stopped (`FieldReading::stopped`).
+    pub fn reading(&self) -> (Option<f64>, bool, bool) {
         let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
         // The histograms' decode rate, summed over every bin once for both rules.
         let rate = self.rate();
-        if self.short / short_tau * 8.0 < rate {
-            return None;
+        if self.short / short_tau * 8.0 < rate || (self.brief_stop && self.stopped_at_once(rate)) {
+            return (None, false, true);
         }
-        if self.brief_stop && self.stopped_at_once(rate) {
-            return None;
-        }
+        let mut recent_needed = false;
+        let estimate = self.estimate_noting(&mut recent_needed);
+        (estimate, recent_needed && estimate.is_some(), false)
+    }
+
+    /// [`OracleField::reading`]'s rotation, setting `recent_needed` when the bands were chosen
+    /// only because the readout answered a moment ago; called only for a field whose decodes
+    /// have not stopped.
+    fn estimate_noting(&self, recent_needed: &mut bool) -> Option<f64> {
         let mut values: std::vec::Vec<(f64, f64)> = std::vec::Vec::new();
         // The answer a moment ago that the estimate must continue, if any.
         let mut to_continue = None;

@@ -2,9 +2,10 @@
 //! firmware's code) reaches, with no scaling of the output (taken as it is, "no evidence"
 //! samples included, as `host-sim eval` takes it), correlation >= 0.94 with the
 //! ground-truth yaw rate on each and RMSE <= 24 % of its peak on dev01 (the noise texture
-//! decodes about 20 % low, see the README's figures), <= 15 % on dev02, <= 13 % on dev03,
-//! <= 25 % on any other sequence (measured: 0.952 / 0.974 / 0.996 and 22.0 / 12.9 / 3.5 %),
-//! and the f64 oracle agrees.
+//! decodes about 20 % low, see the README's figures), <= 11 % on dev02, <= 13 % on dev03,
+//! <= 25 % on any other sequence (measured: 0.953 / 0.982 / 0.998 and 19.0 / 10.8 / 2.6 %;
+//! dev02 11.3 % before a gap that began with the decodes stopping, at a yaw step, made the
+//! next answer a new start), and the f64 oracle agrees.
 
 use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
@@ -47,7 +48,7 @@ fn calibrated_yaw_rate_on_every_synthetic_sequence() {
         );
         let max_err = match name.get(..5) {
             Some("dev01") => 0.24,
-            Some("dev02") => 0.15,
+            Some("dev02") => 0.11,
             Some("dev03") => 0.13,
             _ => 0.25,
         };

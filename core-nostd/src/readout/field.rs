@@ -114,7 +114,9 @@
 //!   histograms' rate ([`BRIEF_STOP_RATIO`], where that expects [`BRIEF_MIN_DECODES`] or
 //!   more): when the image motion stops or reverses at once (a yaw step), no edge completes a
 //!   crossing for a while, and their 10 ms histograms would repeat the old rate for 20-30 ms
-//!   (DAVIS240 steps, seed 8: 10.7 → 8.4 % RMSE / peak).
+//!   (DAVIS240 steps, seed 8: 10.7 → 8.4 % RMSE / peak). Such a reading says so
+//!   ([`FieldReading::stopped`]), and the next answer is a new start, held for a second
+//!   reading (`readout::shared::Confirmation`; seed 8 8.3 → 7.7 %).
 //! - A trigger goes to the slow units only where the paper's units do not burst, so the slow
 //!   units' histograms end at the paper's units' floor (the slowest rotation they time: 0.08
 //!   rad/s across one pixel at a DAVIS346's principal point), and a turn whose crossings
@@ -568,17 +570,28 @@ pub struct FieldReading {
     /// ([`crate::readout::shared::AnswerAge`]), so that what it lets through cannot keep
     /// letting itself through.
     pub recent_needed: bool,
+    /// No evidence because the answering population's decodes stopped (`STOPPED_RATIO`,
+    /// [`BRIEF_STOP_RATIO`]): the motion stopped or changed, so the next answer is a new
+    /// start, not the end of a brief gap ([`crate::readout::shared::Confirmation`]).
+    pub stopped: bool,
 }
 
 impl FieldReading {
     /// No rotation evidence.
     const NOTHING: Self = Self::own(FieldEstimate::NoEvidence);
 
+    /// No rotation evidence: the decodes stopped.
+    const STOPPED: Self = Self {
+        stopped: true,
+        ..Self::NOTHING
+    };
+
     /// An estimate the field makes on its own evidence.
     const fn own(estimate: FieldEstimate) -> Self {
         Self {
             estimate,
             recent_needed: false,
+            stopped: false,
         }
     }
 }
@@ -1032,10 +1045,10 @@ impl Field {
         let short_rate = u64::from(short) / u64::from(SHORT_TAU_US);
         let rate = self.rate(pop);
         if short_rate.saturating_mul(STOPPED_RATIO) < rate {
-            return FieldReading::NOTHING;
+            return FieldReading::STOPPED;
         }
         if pop == Population::Fast && self.stopped_at_once(rate) {
-            return FieldReading::NOTHING;
+            return FieldReading::STOPPED;
         }
         let reading = self.population_estimate(pop);
         let estimate = match (reading.estimate, pop) {
@@ -1189,6 +1202,7 @@ impl Field {
         let reading = |estimate| FieldReading {
             estimate,
             recent_needed,
+            stopped: false,
         };
         match choice {
             BandChoice::Nothing => return FieldReading::NOTHING,
