@@ -108,7 +108,7 @@ fn agree(held: i32, rate: i32) -> bool {
 
 impl Confirmation {
     /// Takes one reading (`Some(rate)`, Q16 rad/s: a rotation, which the field never gives as
-    /// 0; `None`: no evidence, `stopped` when because the decodes stopped,
+    /// 0; `None`: no evidence; `stopped`: whether for want of decodes,
     /// [`FieldReading::stopped`]) and says whether it is output.
     pub fn read(&mut self, reading: Option<i32>, stopped: bool) -> bool {
         let answering = |negative, readings| Self::Answering { negative, readings };
