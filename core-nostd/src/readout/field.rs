@@ -2796,6 +2796,9 @@ mod tests {
                 f.age();
             }
             assert_answer(&f, answers, (0.5, 0.05), &per_period);
+            // The reading says why it has no evidence: the gate takes the next answer as a
+            // new start (`shared::Confirmation`).
+            assert_eq!(f.reading().stopped, !answers, "{per_period}");
         }
     }
 
