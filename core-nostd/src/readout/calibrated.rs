@@ -62,7 +62,7 @@ use fixed::types::{I16F16, U16F16};
 use super::aperture::{self, Around};
 use super::field::{Field, FieldSettings, Population};
 use super::shared::{
-    answered, field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder,
+    field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder,
 };
 use super::stride_choice::{Stride, StrideChoice};
 use super::Readout;
@@ -431,8 +431,7 @@ impl Readout for Calibrated {
     fn output(&mut self, _t_us: u32) -> (I16F16, u8) {
         self.stride.age(self.cal.period_us);
         let out = self.gate.output(&mut self.field);
-        self.stride
-            .follow_answer(answered(out), self.rates.focal_bits());
+        self.stride.follow_answer(out, self.rates.focal_bits());
         out
     }
 }

@@ -239,11 +239,6 @@ impl Answers {
     }
 }
 
-/// The yaw rate an output answers (I16F16 bits), if it is not flagged "no evidence".
-pub fn answered((yaw, flags): (I16F16, u8)) -> Option<i32> {
-    (flags & flags::NO_EVIDENCE == 0).then_some(yaw.to_bits())
-}
-
 /// Whether a crossing of `2^log2_dt_s` s lies within an octave below the paper's units' reach
 /// `2^reach_log2_s` s (half of it or more; both Q16.16): a decode of that crossing lies within
 /// an octave above their floor, past the end of the slow units' histograms

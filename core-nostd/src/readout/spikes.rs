@@ -143,8 +143,8 @@ use super::aperture::{self, Around};
 use super::calibrated::{has_near, Calibration, SLOW_TAU_A_US};
 use super::field::{Field, Population};
 use super::shared::{
-    answered, field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder,
-    DOMINANCE_LOG2, LOG2_1E6, WARMUP_US,
+    field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder, DOMINANCE_LOG2,
+    LOG2_1E6, WARMUP_US,
 };
 use super::stride_choice::{Stride, StrideChoice};
 use super::{Readout, Side};
@@ -1545,9 +1545,7 @@ impl<L: Layout> Readout for Spikes<'_, L> {
         let near = self.near.is_some() && target.stride.choice() == Stride::Near;
         target.slow_fac.follow(near, t_us);
         let out = self.gate.output(&mut target.field);
-        target
-            .stride
-            .follow_answer(answered(out), target.rates.focal_bits());
+        target.stride.follow_answer(out, target.rates.focal_bits());
         out
     }
 

@@ -44,8 +44,11 @@
 //! the near units read as well, and answer sooner at a turn's start and reversals. The sign
 //! counts go on meanwhile.
 
+use fixed::types::I16F16;
+
 use super::field::{sign_agreement, REGIONS};
 use crate::exp_table::{scale_q31, ExpDecay};
+use crate::flags;
 
 /// Memory of the sign counts (µs).
 pub const MEMORY_US: u32 = 1_000_000;
@@ -149,13 +152,15 @@ impl StrideChoice {
         }
     }
 
-    /// The readout's answer at an output: `yaw` in rad/s (I16F16 bits; `None`: no evidence),
-    /// with the focal length `focal_bits` (px, U16F16 bits). It says how fast the image
-    /// moves at the principal point (`|yaw| f` px/s): see "Fast motion".
-    pub fn follow_answer(&mut self, yaw: Option<i32>, focal_bits: u32) {
-        let px_s = yaw.map_or(0, |w| {
-            (u64::from(w.unsigned_abs()) * u64::from(focal_bits)) >> 32
-        });
+    /// The readout's output `(yaw, flags)` (rad/s; "no evidence" when flagged so), with the
+    /// focal length `focal_bits` (px, U16F16 bits). It says how fast the image moves at the
+    /// principal point (`|yaw| f` px/s): see "Fast motion".
+    pub fn follow_answer(&mut self, (yaw, flags): (I16F16, u8), focal_bits: u32) {
+        let px_s = if flags & flags::NO_EVIDENCE == 0 {
+            (u64::from(yaw.to_bits().unsigned_abs()) * u64::from(focal_bits)) >> 32
+        } else {
+            0
+        };
         self.fast = moves_fast(self.fast, px_s);
     }
 
@@ -344,7 +349,7 @@ mod tests {
     fn fast_answers_choose_the_layout_units_until_they_slow_down() {
         // f = 226 px: 1.58 rad/s is 357 px/s, 1.18 rad/s 267 px/s.
         let focal = 226 << 16;
-        let rad_s = |w: f64| Some((w * 65_536.0) as i32);
+        let rad_s = |w: f64| (I16F16::from_num(w), 0);
         let mut c = StrideChoice::new(true);
         c.follow_answer(rad_s(1.5), focal);
         assert_eq!(c.choice(), Stride::Near, "below the fast speed");
@@ -359,7 +364,7 @@ mod tests {
         c.follow_answer(rad_s(1.1), focal);
         assert_eq!(c.choice(), Stride::Near);
         c.follow_answer(rad_s(4.0), focal);
-        c.follow_answer(None, focal);
+        c.follow_answer((I16F16::from_num(4.0), flags::NO_EVIDENCE), focal);
         assert_eq!(c.choice(), Stride::Near, "no evidence: not fast");
         // The sign counts' own choice is kept underneath.
         decodes(&mut c, Stride::Layout, 0, 100, 100);
