@@ -851,9 +851,14 @@ impl OracleGate {
             }
             let (now, recent_needed, stopped) = two_population_estimate(fields, twins);
             // In the fixed-point gate's units (Q16 rad/s; the estimate is clamped to 20).
-            let answer =
-                self.answers
-                    .read(now.map(|v| (v * 65536.0) as i32), recent_needed, stopped);
+            use crate::readout::field::{FieldEstimate, FieldReading};
+            let answer = self.answers.read(&FieldReading {
+                estimate: now.map_or(FieldEstimate::NoEvidence, |v| {
+                    FieldEstimate::Rotation((v * 65536.0) as i32)
+                }),
+                recent_needed,
+                stopped,
+            });
             self.last = now.filter(|_| answer);
         }
         self.phase = (self.phase + 1) % self.refresh;

@@ -213,13 +213,17 @@ pub struct Answers {
 }
 
 impl Answers {
-    /// Takes one reading (`Some(rate)`, Q16 rad/s: a rotation; `None`: no evidence), which
-    /// needed the answer a moment ago or not ([`FieldReading::recent_needed`]), or shows none
-    /// because the decodes stopped ([`FieldReading::stopped`]), and says whether it is output.
-    pub fn read(&mut self, reading: Option<i32>, recent_needed: bool, stopped: bool) -> bool {
-        let answered = self.confirmation.read(reading, stopped);
+    /// Takes one reading of the field (its rotation, whether that needed the answer a moment
+    /// ago, [`FieldReading::recent_needed`], and whether it shows none because the decodes
+    /// stopped, [`FieldReading::stopped`]) and says whether it is output.
+    pub fn read(&mut self, reading: &FieldReading) -> bool {
+        let rate = match reading.estimate {
+            FieldEstimate::Rotation(v) => Some(v),
+            FieldEstimate::NoEvidence => None,
+        };
+        let answered = self.confirmation.read(rate, reading.stopped);
         self.age
-            .after(reading.filter(|_| answered && !recent_needed));
+            .after(rate.filter(|_| answered && !reading.recent_needed));
         answered
     }
 
@@ -472,22 +476,27 @@ impl OutputGate {
     /// the event path's code.
     #[inline(never)]
     fn read(&mut self, field: FieldReading) {
-        let reading = match field.estimate {
-            FieldEstimate::Rotation(v) => Some(I16F16::from_bits(v)),
-            FieldEstimate::NoEvidence => None,
+        self.answers.read(&field);
+        self.value = match field.estimate {
+            FieldEstimate::Rotation(v) => I16F16::from_bits(v),
+            FieldEstimate::NoEvidence => I16F16::ZERO,
         };
-        self.answers.read(
-            reading.map(I16F16::to_bits),
-            field.recent_needed,
-            field.stopped,
-        );
-        self.value = reading.unwrap_or(I16F16::ZERO);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A reading of the field: `rate` (Q16 rad/s; `None`: no evidence, not for want of
+    /// decodes), needing the answer a moment ago or not.
+    fn reading_of(rate: Option<i32>, recent_needed: bool) -> FieldReading {
+        FieldReading {
+            estimate: rate.map_or(FieldEstimate::NoEvidence, FieldEstimate::Rotation),
+            recent_needed,
+            stopped: false,
+        }
+    }
 
     #[test]
     fn an_answer_after_no_evidence_waits_for_a_second_reading_of_its_sign_unless_it_resumes() {
@@ -568,7 +577,7 @@ mod tests {
         // is held back, and the motion is still recent, the other way (a reversal).
         let mut a = Answers::default();
         for reading in [Some(1 << 16), Some(1 << 15), None, Some(-1 << 16)] {
-            a.read(reading, false, false);
+            a.read(&reading_of(reading, false));
         }
         assert_eq!(a.confirmation, Confirmation::Held { rate_q16: -1 << 16 });
         assert_eq!(a.last_answer().map(|r| r.rate_q16), Some(1 << 15));
@@ -576,19 +585,19 @@ mod tests {
         // again: it ends RECENT_READINGS after the last answer on the field's own evidence.
         let mut a = Answers::default();
         for _ in 0..2 {
-            a.read(Some(1 << 16), false, false);
+            a.read(&reading_of(Some(1 << 16), false));
         }
         for k in 1..=RECENT_READINGS {
             // In turns: "no evidence", then a rotation that needed the motion to be recent.
             let needed = k % 2 == 0;
             assert_eq!(
-                a.read(needed.then_some(1 << 16), needed, false),
+                a.read(&reading_of(needed.then_some(1 << 16), needed)),
                 needed,
                 "reading {k}"
             );
             assert!(a.last_answer().is_some(), "reading {k}");
         }
-        a.read(Some(1 << 16), true, false);
+        a.read(&reading_of(Some(1 << 16), true));
         assert!(a.answering());
         assert_eq!(a.last_answer(), None, "{a:?}");
     }
