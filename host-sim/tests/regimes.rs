@@ -305,8 +305,9 @@ fn constant_turn_gain(
     readout: &str,
 ) -> (f64, f64) {
     let samples = run_pipeline(opts, rec).expect("run").samples;
-    let settled = || samples.iter().filter(|s| s.0 >= from_s);
-    let answered: Vec<f64> = settled()
+    let settled: Vec<_> = samples.iter().filter(|s| s.0 >= from_s).collect();
+    let answered: Vec<f64> = settled
+        .iter()
         .filter(|s| s.2 & NO_EVIDENCE == 0)
         .map(|s| s.1)
         .collect();
@@ -314,12 +315,9 @@ fn constant_turn_gain(
     eprintln!(
         "{rate} rad/s over the skyline, {readout} readout: answers read {gain:.3} of it on average ({} of {} samples from {from_s} s)",
         answered.len(),
-        settled().count()
+        settled.len()
     );
-    (
-        gain,
-        answered.len() as f64 / settled().count().max(1) as f64,
-    )
+    (gain, answered.len() as f64 / settled.len().max(1) as f64)
 }
 
 /// Slow constant turns over the skyline (sharp edges; 2 s, seed 5): once settled (from 1 s
@@ -405,7 +403,7 @@ fn a_steady_turn_whose_texture_leaves_the_top_row_band() {
 /// while; the paper's units' decodes stop within a few ms, but their 10 ms histograms repeated
 /// the old rate for 20-30 ms. They now say nothing while their decodes over the last 3 ms
 /// fall below half their histograms' rate: RMSE / peak 13.1 → 8.4 % (spike readout 10.0 %),
-/// "no evidence" while turning 1.9 → 3.2 %.
+/// "no evidence" while turning 1.9 → 3.2 % (today 8.5 % and 3.4 %).
 #[test]
 fn yaw_steps() {
     let (f, s) = scene_with(Regime::Rotation, 814, 2.5, |c| {

@@ -61,7 +61,8 @@
 //! differs: a drive decoded from spikes is good to about 0.1 %, and the own trace it is divided
 //! by, rebuilt from decoded onsets, to a few per cent, so close to its ceiling (`w_T` times the
 //! own trace) the decoded crossing time is mostly error. With the near units chosen they are
-//! therefore read only for drives up to [`NEAR_DRIVE_SHARE_LOG2`] of the ceiling (a one-pixel crossing of at least 2.1 ms), and the
+//! therefore read only for drives up to [`NEAR_DRIVE_SHARE_LOG2`] of the ceiling (a one-pixel
+//! crossing of at least 2.1 ms), and the
 //! layout's units only for the onsets that the near unit facing the same way decoded above it: one
 //! stride times each onset. Such an onset crossed one pixel faster than the floor, so its layout
 //! decode reads no slower than twice the floor over the stride: the near units' decodes kept are
