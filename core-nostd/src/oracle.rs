@@ -589,7 +589,7 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
             fac: std::vec![(0.0, 0.0, 0.0, false); n],
             fields,
             next_out: None,
-            gate: OracleGate::new(period_us),
+            gate: OracleGate::new(period_us, p, focal),
             last_event: 0.0,
             twins,
             stride,
@@ -831,14 +831,22 @@ struct OracleGate {
 }
 
 impl OracleGate {
-    fn new(period_us: f64) -> Self {
+    /// The gate of units `p` behind a camera of focal length `focal` (px): the units' slowest
+    /// rotation is a one-pixel crossing in the slow units' window at the principal point
+    /// (`readout::shared::slowest_rate_q16`).
+    fn new(period_us: f64, p: OracleParams, focal: f64) -> Self {
         let period = (period_us as u32).max(1);
+        let slow = OracleParams {
+            tau_fac: f64::from(crate::params::TAU_SLOW_US),
+            ..p
+        };
+        let floor = 1.0 / (focal * slow.reach_s());
         Self {
             warmup_outputs: crate::readout::shared::WARMUP_US.div_ceil(period),
             refresh: (crate::readout::shared::REFRESH_US / period).max(1),
             phase: 0,
             last: None,
-            answers: crate::readout::shared::Answers::default(),
+            answers: crate::readout::shared::Answers::new((floor * 65_536.0).round() as u32),
         }
     }
 
@@ -1104,7 +1112,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
             near_floor_s: -p.tau_fac * share.ln() * 1e-6,
             next_out: None,
             decode_from: f64::INFINITY,
-            gate: OracleGate::new(period_us),
+            gate: OracleGate::new(period_us, p, focal),
             last_event: 0.0,
             spikes: 0,
             samples: 0,

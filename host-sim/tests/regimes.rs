@@ -548,6 +548,25 @@ fn people_walking_past_a_hovering_drone_that_turns() {
     );
 }
 
+/// A hover whose pixels also fire at 0.5 Hz on their own (seed 616, rendered and looked at
+/// once): in its pauses the noise's decodes made answers of about -0.008 rad/s, slower than
+/// anything the units time; the spike readout then took the first readings of the next turn,
+/// from two regions of one row band, for the other side of a reversal and answered 0.39-0.51
+/// rad/s at a 0.05 rad/s turn (25.9 % RMSE / peak, 1.48 times the calibrated readout's). An
+/// answer below the units' slowest rotation now makes the motion recent only where it
+/// continues an answer (`readout::shared::Answers`, `slowest_rate_q16`).
+#[test]
+fn a_hover_with_background_activity() {
+    let (f, s) = scene_with(Regime::Hover, 616, 4.0, |cfg| cfg.sensor.noise_hz = 0.5);
+    check_turning(
+        "hover seed 616, 0.5 Hz background activity",
+        &f,
+        &s,
+        (0.92, 0.21, 0.05),
+        1.25,
+    );
+}
+
 /// Two people walk past a hovering drone (seed 631, rendered after the other rules) while it
 /// turns at up to 0.2 rad/s. Where a column band's rows above the principal row had no decode
 /// in a moment, its rows below alone gave its value, and the people's motion there outweighed

@@ -62,7 +62,7 @@ use fixed::types::{I16F16, U16F16};
 use super::aperture::{self, Around};
 use super::field::{Field, FieldSettings, Population};
 use super::shared::{
-    field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder,
+    field_over, slowest_rate_q16, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder,
 };
 use super::stride_choice::{Stride, StrideChoice};
 use super::Readout;
@@ -232,11 +232,12 @@ impl Calibrated {
             log2_q16(u64::from(TAU_SLOW_US), 0),
         ];
         let [log2_tau_fast, _] = log2_tau;
+        let rates = RateDecoder::new(layout, cal.focal_px, cal.cx);
         Self {
             cal,
             field,
             log2_tau,
-            rates: RateDecoder::new(layout, cal.focal_px, cal.cx),
+            rates,
             w_trg: p.w_trg.to_bits(),
             min_drive,
             slow_scene_own: Trace::saturating_from_num(p.w_fac).saturating_add(SLOW_SCENE_MARGIN),
@@ -244,7 +245,7 @@ impl Calibrated {
             log2_min_drive: log2_q16(u64::from(min_drive.to_bits()), 0),
             reach_log2_s: window_log2_s(kernel, log2_tau_fast),
             stride_px: layout.stride(),
-            gate: OutputGate::new(cal.period_us, WARMUP_US),
+            gate: OutputGate::new(cal.period_us, WARMUP_US, slowest_rate_q16(kernel, &rates)),
             stride: StrideChoice::new(near_units),
             near_units,
             samples: 0,

@@ -11,8 +11,8 @@ use super::field::{
 use super::stride_choice::Stride;
 use crate::flags;
 use crate::layout::Layout;
-use crate::log2::log2_q16;
-use crate::params::Trace;
+use crate::log2::{exp2_q16, log2_q16};
+use crate::params::{Trace, TAU_SLOW_US};
 use crate::unit::Kernel;
 
 /// `log2(1e6)` in Q16.16 (µs to s).
@@ -206,13 +206,35 @@ impl AnswerAge {
 /// The readings so far as both gates take them: whether they make an answer
 /// ([`Confirmation`]) and how long since the field last answered on its own evidence
 /// ([`AnswerAge`]). One rule for [`OutputGate`] and the f64 oracle's gate.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+///
+/// An answer slower than the slowest rotation the units time ([`slowest_rate_q16`]) makes the
+/// motion recent only where it continues the answer of the reading before: on its own it is
+/// no motion the units can show, but what background activity makes of a camera that stands
+/// still, and the rules for the moment after an answer (a reversal: the other sign without
+/// the rows above) would take the first readings of the next turn for the other side of a
+/// reversal. (Hover seed 616 with 0.5 Hz of background activity per pixel, spike readout: an
+/// answer of -0.008 rad/s in a pause let two readings from two regions of one row band through
+/// as a reversal, 0.39 and 0.51 rad/s at a 0.05 rad/s turn; 25.9 → 20.1 % RMSE / peak.) A turn
+/// that slows through the floor goes on counting, answer after answer (dev01's reversals).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Answers {
     confirmation: Confirmation,
     age: AnswerAge,
+    /// The slowest rotation the units time (Q16 rad/s, >= 0): see [`slowest_rate_q16`].
+    floor_q16: u32,
 }
 
 impl Answers {
+    /// No readings yet, with the units' slowest rotation `floor_q16` (Q16 rad/s,
+    /// [`slowest_rate_q16`]; 0: every answer counts as motion).
+    pub fn new(floor_q16: u32) -> Self {
+        Self {
+            confirmation: Confirmation::default(),
+            age: AnswerAge::default(),
+            floor_q16,
+        }
+    }
+
     /// Takes one reading of the field (its rotation, whether that needed the answer a moment
     /// ago, [`FieldReading::recent_needed`], and whether it shows none because the decodes
     /// stopped, [`FieldReading::stopped`]) and says whether it is output.
@@ -222,8 +244,10 @@ impl Answers {
             FieldEstimate::NoEvidence => None,
         };
         let answered = self.confirmation.read(rate, reading.stopped);
+        let continues = self.age.readings == 0;
+        let motion = |r: &i32| r.unsigned_abs() >= self.floor_q16 || continues;
         self.age
-            .after(rate.filter(|_| answered && !reading.recent_needed));
+            .after(rate.filter(|r| answered && !reading.recent_needed && motion(r)));
         answered
     }
 
@@ -241,6 +265,16 @@ impl Answers {
     pub fn last_answer(&self) -> Option<RecentAnswer> {
         self.age.last_answer()
     }
+}
+
+/// The slowest rotation the units time (Q16 rad/s): a one-pixel crossing that takes the slow
+/// units' whole window ([`window_log2_s`] with `tau_F` = [`TAU_SLOW_US`], ~270 ms), at the
+/// principal point (`rates`): 3.7 px/s, 0.016 rad/s on a DAVIS346 (f = 226 px). Slower
+/// answers are not motion the units show ([`Answers`]).
+pub fn slowest_rate_q16(kernel: &Kernel, rates: &RateDecoder) -> u32 {
+    let window = window_log2_s(kernel, log2_q16(u64::from(TAU_SLOW_US), 0));
+    let cx = u16::try_from(rates.cx_bits.saturating_add(1 << 15) >> 16).unwrap_or(u16::MAX);
+    exp2_q16(rates.rotation_rate_over(Stride::Near, window, cx))
 }
 
 /// Whether a crossing of `2^log2_dt_s` s lies within an octave below the paper's units' reach
@@ -425,13 +459,14 @@ pub struct OutputGate {
 impl OutputGate {
     /// The gate of a readout with output period `period_us` that says "no evidence" for the
     /// first `warmup_us` (at least [`WARMUP_US`]).
-    pub fn new(period_us: u32, warmup_us: u32) -> Self {
+    /// `floor_q16`: the units' slowest rotation ([`slowest_rate_q16`]).
+    pub fn new(period_us: u32, warmup_us: u32, floor_q16: u32) -> Self {
         Self {
             warmup_outputs: warmup_us.max(WARMUP_US).div_ceil(period_us.max(1)),
             refresh: (REFRESH_US / period_us.max(1)).max(1),
             phase: 0,
             value: I16F16::ZERO,
-            answers: Answers::default(),
+            answers: Answers::new(floor_q16),
         }
     }
 
@@ -503,7 +538,7 @@ mod tests {
         const NE: (I16F16, u8) = (I16F16::ZERO, flags::NO_EVIDENCE);
         let r = |v: f32| FieldEstimate::Rotation(I16F16::from_num(v).to_bits());
         let out = |v: f32| (I16F16::from_num(v), 0u8);
-        let mut gate = OutputGate::new(1_000, WARMUP_US);
+        let mut gate = OutputGate::new(1_000, WARMUP_US, 0);
         let steps = [
             (FieldEstimate::NoEvidence, NE),
             // The first reading after none is held; the next of its sign answers.
@@ -575,7 +610,7 @@ mod tests {
         assert_eq!(age.last_answer(), None);
         // Through the gates' rule: after a pause in the answers, a reading of the other sign
         // is held back, and the motion is still recent, the other way (a reversal).
-        let mut a = Answers::default();
+        let mut a = Answers::new(0);
         for reading in [Some(1 << 16), Some(1 << 15), None, Some(-1 << 16)] {
             a.read(&reading_of(reading, false));
         }
@@ -583,7 +618,7 @@ mod tests {
         assert_eq!(a.last_answer().map(|r| r.rate_q16), Some(1 << 15));
         // Answers that needed the motion to be recent are output, but do not make it recent
         // again: it ends RECENT_READINGS after the last answer on the field's own evidence.
-        let mut a = Answers::default();
+        let mut a = Answers::new(0);
         for _ in 0..2 {
             a.read(&reading_of(Some(1 << 16), false));
         }
@@ -600,6 +635,52 @@ mod tests {
         a.read(&reading_of(Some(1 << 16), true));
         assert!(a.answering());
         assert_eq!(a.last_answer(), None, "{a:?}");
+    }
+
+    #[test]
+    fn answers_slower_than_the_units_floor_make_no_motion_on_their_own() {
+        let floor = 1 << 10; // 0.0156 rad/s
+                             // A still camera's background activity: answers of -0.008 rad/s after a pause are
+                             // output, but the motion is not recent (no reversal can follow from them).
+        let mut a = Answers::new(floor);
+        for _ in 0..3 {
+            a.read(&reading_of(Some(-1 << 9), false));
+        }
+        assert!(a.answering());
+        assert_eq!(a.last_answer(), None);
+        // Without a floor they would make it recent.
+        let mut any = Answers::new(0);
+        for _ in 0..3 {
+            any.read(&reading_of(Some(-1 << 9), false));
+        }
+        assert_eq!(any.last_answer().map(|r| r.rate_q16), Some(-1 << 9));
+        // A turn that slows through the floor goes on counting, answer after answer.
+        let mut b = Answers::new(floor);
+        for rate in [1 << 14, 1 << 14, 1 << 12, 1 << 9, 1 << 8] {
+            b.read(&reading_of(Some(rate), false));
+        }
+        assert_eq!(b.last_answer().map(|r| r.rate_q16), Some(1 << 8));
+        // After a gap, a slow answer (resumed at once) does not count again.
+        b.read(&reading_of(None, false));
+        assert!(b.read(&reading_of(Some(1 << 8), false)));
+        let r = b.last_answer().map(|r| (r.rate_q16, r.readings));
+        assert_eq!(r, Some((1 << 8, 2)));
+    }
+
+    #[test]
+    fn the_units_slowest_rotation_is_a_pixel_in_the_slow_units_window() {
+        // DAVIS346: f = 226 px, principal point (172.5, 129.5); the slow units time a crossing
+        // of up to ~270 ms, so 3.7 px/s, 0.0164 rad/s at the principal point.
+        let layout = crate::layout::Dense::new(346, 260, 2).unwrap();
+        let f = U16F16::from_num(226);
+        let rates = RateDecoder::new(&layout, f, U16F16::from_num(172.5));
+        let floor = slowest_rate_q16(&Kernel::DEFAULT, &rates) as f64 / 65_536.0;
+        let window = window_log2_s(&Kernel::DEFAULT, log2_q16(u64::from(TAU_SLOW_US), 0));
+        let window_s = exp2_q16(window) as f64 / 65_536.0;
+        assert!((0.25..0.29).contains(&window_s), "{window_s} s");
+        let want = 1.0 / (226.0 * window_s);
+        assert!((floor / want - 1.0).abs() < 0.01, "{floor} against {want}");
+        assert!((0.0155..0.0175).contains(&floor), "{floor}");
     }
 
     #[test]

@@ -144,8 +144,8 @@ use super::aperture::{self, Around};
 use super::calibrated::{has_near, Calibration, SLOW_TAU_A_US};
 use super::field::{Field, Population};
 use super::shared::{
-    field_over, window_log2_s, within_an_octave_of_reach, OutputGate, RateDecoder, DOMINANCE_LOG2,
-    LOG2_1E6, WARMUP_US,
+    field_over, slowest_rate_q16, window_log2_s, within_an_octave_of_reach, OutputGate,
+    RateDecoder, DOMINANCE_LOG2, LOG2_1E6, WARMUP_US,
 };
 use super::stride_choice::{Stride, StrideChoice};
 use super::{Readout, Side};
@@ -1370,9 +1370,11 @@ impl<'a, L: Layout> Spikes<'a, L> {
             [cal.tau_a_us, cal.tau_a_us.max(SLOW_TAU_A_US)],
             cal.period_us,
         );
+        let rates = RateDecoder::new(&layout, cal.focal_px, cal.cx);
+        let floor_q16 = slowest_rate_q16(kernel, &rates);
         Self {
             target: Target {
-                rates: RateDecoder::new(&layout, cal.focal_px, cal.cx),
+                rates,
                 log2_w_trg: log2_q16(u64::from(p.w_trg.to_bits()), 16),
                 layout,
                 field,
@@ -1386,7 +1388,7 @@ impl<'a, L: Layout> Spikes<'a, L> {
             },
             // The warm-up's onsets are not decoded; after it the field's own rules say when
             // its first decodes are evidence enough (as for the calibrated readout).
-            gate: OutputGate::new(cal.period_us, WARMUP_US),
+            gate: OutputGate::new(cal.period_us, WARMUP_US, floor_q16),
             fast: Decoding::new((Population::Fast, Stride::Layout), kernel, cells, None),
             slow: None,
             near: None,
