@@ -2100,7 +2100,8 @@ impl OracleField {
         }
         if let (Some((wa, va)), Some((wb, vb))) = (above, oracle_fit(&sums, [false, true])) {
             let sigmas = crate::readout::field::HALVES_DISAGREE_SIGMAS as f64;
-            if (wa - wb) * (wa - wb) > sigmas * sigmas * (va + vb) {
+            let faster = crate::readout::field::HALVES_FASTER_BELOW as f64;
+            if (wa - wb) * (wa - wb) > sigmas * sigmas * (va + vb) || wb.abs() > faster * wa.abs() {
                 return above;
             }
         }

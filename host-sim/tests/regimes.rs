@@ -535,7 +535,11 @@ fn people_walking_past_a_camera_flying_low() {
 /// read 1.5-2 times the turn while the near person crossed, and where the far one crossed, the
 /// halves' split in direction read "no evidence" (50.8 % RMSE / peak, "no evidence" on 19.2 %
 /// of the samples while turning). Where its halves disagree, a band now reads the rows above
-/// the principal row alone (`readout::field`, `HALVES_DISAGREE_SIGMAS`).
+/// the principal row alone (`readout::field`, `HALVES_DISAGREE_SIGMAS`): 24.3 %. The near
+/// person's decodes below the principal row are many and agree, those of the slow turn above
+/// it few and spread, so the halves' difference often stayed within three standard deviations;
+/// a band also reads the rows above alone where the rows below read more than twice as fast
+/// (`HALVES_FASTER_BELOW`): 15.5 % (spike readout 26.3 → 15.5 %).
 #[test]
 fn people_walking_past_a_hovering_drone_that_turns() {
     let (f, s) = scene_with(Regime::Hover, 98, 3.0, |cfg| cfg.objects = 2);
@@ -543,8 +547,8 @@ fn people_walking_past_a_hovering_drone_that_turns() {
         "hover seed 98, two people walking past",
         &f,
         &s,
-        (0.93, 0.3, 0.1),
-        1.3,
+        (0.95, 0.2, 0.1),
+        1.25,
     );
 }
 
