@@ -458,8 +458,8 @@ pub struct OutputGate {
 
 impl OutputGate {
     /// The gate of a readout with output period `period_us` that says "no evidence" for the
-    /// first `warmup_us` (at least [`WARMUP_US`]).
-    /// `floor_q16`: the units' slowest rotation ([`slowest_rate_q16`]).
+    /// first `warmup_us` (at least [`WARMUP_US`]), over units whose slowest rotation is
+    /// `floor_q16` (Q16 rad/s, [`slowest_rate_q16`]).
     pub fn new(period_us: u32, warmup_us: u32, floor_q16: u32) -> Self {
         Self {
             warmup_outputs: warmup_us.max(WARMUP_US).div_ceil(period_us.max(1)),
