@@ -857,17 +857,9 @@ impl OracleGate {
                 field.established = self.answers.established();
                 field.recent_motion = self.answers.last_answer();
             }
-            let (now, recent_needed, stopped) = two_population_estimate(fields, twins);
-            // In the fixed-point gate's units (Q16 rad/s; the estimate is clamped to 20).
-            use crate::readout::field::{FieldEstimate, FieldReading};
-            let answer = self.answers.read(&FieldReading {
-                estimate: now.map_or(FieldEstimate::NoEvidence, |v| {
-                    FieldEstimate::Rotation((v * 65536.0) as i32)
-                }),
-                recent_needed,
-                stopped,
-            });
-            self.last = now.filter(|_| answer);
+            let reading = two_population_estimate(fields, twins);
+            let answer = self.answers.read(&reading.fixed());
+            self.last = reading.estimate.filter(|_| answer);
         }
         self.phase = (self.phase + 1) % self.refresh;
         for field in fields.iter_mut() {
@@ -883,13 +875,39 @@ impl OracleGate {
     }
 }
 
+/// What an [`OracleField`] shows: the fixed-point field's `FieldReading` with the rotation in
+/// rad/s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OracleReading {
+    /// The rotation (rad/s), if the field shows one.
+    pub estimate: Option<f64>,
+    /// It needed the readout's answer a moment ago to show it (`FieldReading::recent_needed`).
+    pub recent_needed: bool,
+    /// It shows none because its decodes stopped (`FieldReading::stopped`).
+    pub stopped: bool,
+}
+
+impl OracleReading {
+    /// The same reading in the fixed-point gate's units (Q16 rad/s; the estimate is clamped
+    /// to 20 rad/s, so it fits).
+    fn fixed(&self) -> crate::readout::field::FieldReading {
+        use crate::readout::field::{FieldEstimate, FieldReading};
+        FieldReading {
+            estimate: self.estimate.map_or(FieldEstimate::NoEvidence, |v| {
+                FieldEstimate::Rotation((v * 65536.0) as i32)
+            }),
+            recent_needed: self.recent_needed,
+            stopped: self.stopped,
+        }
+    }
+}
+
 /// The estimate of the population (0: the paper's units, 1: the slow units) whose decodes
 /// agree more in sign per unit of its time constant (`twins == false`, a layout without twin
 /// units: that decodes more), the slow units' figure scaled up while their histograms fill
 /// ([`OracleField::fill`]); the slow units' value scaled by their recent share of decodes.
-/// Also whether it needed the readout's answer a moment ago, and whether its decodes stopped
-/// ([`OracleField::reading`]).
-fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> (Option<f64>, bool, bool) {
+/// With the reading's reasons ([`OracleField::reading`]).
+fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> OracleReading {
     let [fast, slow] = fields;
     let by = |f: &OracleField| {
         if twins {
@@ -899,12 +917,11 @@ fn two_population_estimate(fields: &[OracleField; 2], twins: bool) -> (Option<f6
         }
     };
     if by(fast) < by(slow) * slow.fill() {
-        let (estimate, recent_needed, stopped) = slow.reading();
-        (
-            estimate.map(|v| v * slow.recent_share()),
-            recent_needed,
-            stopped,
-        )
+        let reading = slow.reading();
+        OracleReading {
+            estimate: reading.estimate.map(|v| v * slow.recent_share()),
+            ..reading
+        }
     } else {
         fast.reading()
     }
@@ -1987,19 +2004,28 @@ impl OracleField {
         }
     }
 
-    /// The rotation the field shows, if it shows one; whether it needed the readout's answer a
-    /// moment ago to show it (the fixed-point field's `FieldReading::recent_needed`); and
-    /// whether it shows none because its decodes stopped (`FieldReading::stopped`).
-    pub fn reading(&self) -> (Option<f64>, bool, bool) {
+    /// The rotation the field shows, if it shows one, and why ([`OracleReading`]).
+    pub fn reading(&self) -> OracleReading {
         let short_tau = f64::from(crate::readout::field::SHORT_TAU_US);
+        let stopped_ratio = crate::readout::field::STOPPED_RATIO as f64;
         // The histograms' decode rate, summed over every bin once for both rules.
         let rate = self.rate();
-        if self.short / short_tau * 8.0 < rate || (self.brief_stop && self.stopped_at_once(rate)) {
-            return (None, false, true);
+        if self.short / short_tau * stopped_ratio < rate
+            || (self.brief_stop && self.stopped_at_once(rate))
+        {
+            return OracleReading {
+                estimate: None,
+                recent_needed: false,
+                stopped: true,
+            };
         }
         let mut recent_needed = false;
         let estimate = self.estimate_noting(&mut recent_needed);
-        (estimate, recent_needed && estimate.is_some(), false)
+        OracleReading {
+            estimate,
+            recent_needed: recent_needed && estimate.is_some(),
+            stopped: false,
+        }
     }
 
     /// [`OracleField::reading`]'s rotation, setting `recent_needed` when the bands were chosen

@@ -237,7 +237,7 @@ pub const OCTAVE_BINS: usize = (65_536 / BIN_W) as usize;
 pub const SHORT_TAU_US: u32 = 20_000;
 /// A population whose recent decode rate is below `1 / STOPPED_RATIO` of its histograms'
 /// rate has stopped seeing motion.
-const STOPPED_RATIO: u64 = 8;
+pub const STOPPED_RATIO: u64 = 8;
 /// Time constant of the paper's units' latest decode rate, in tenths of their histograms'
 /// (`tau_A`; 3 ms for a whole DAVIS240/346 layout). It tells an abrupt stop or reversal of the
 /// image motion: no edge completes a crossing then, and their decodes stop within a few ms
