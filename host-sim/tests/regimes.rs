@@ -247,7 +247,7 @@ fn hover_slow_yaw() {
 /// across one pixel (0.08 rad/s at the principal point): the slow units time the slower half
 /// of its crossings, the paper's units the rest. Counting the paper's decodes past the slow
 /// units' floor (`Field::add_beyond_floor`), the readout's answers over 1.2-2.2 s read 0.85-1.15
-/// of the turn on average (today 0.915, 0.905 before the paper's units stopped at a yaw step; 0.80
+/// of the turn on average (today 0.932, 0.905 before the paper's units stopped at a yaw step; 0.80
 /// from the slow units' histograms alone).
 ///
 /// Its turns start after pauses, at 0.05-0.07 rad/s: the slow units answer them. The spike
@@ -341,7 +341,7 @@ fn slow_turns_over_a_skyline() {
 /// edge's crossing (under 1.1 ms) is short against the jitter of its onsets, and the near
 /// units read 0.963 / 0.895 of the turn (spike readout 0.867 / 0.863). While the answer says
 /// the image moves faster than a pixel per 2.8 ms the layout's units decode instead
-/// (`stride_choice`, "Fast motion"): 0.987 / 0.960 (spike readout 0.982 / 0.871).
+/// (`stride_choice`, "Fast motion"): 0.987 / 0.960 (spike readout 0.982 / 0.868).
 #[test]
 fn fast_turns_over_a_skyline() {
     let spikes = RunOptions {

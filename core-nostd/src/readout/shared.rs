@@ -639,9 +639,10 @@ mod tests {
 
     #[test]
     fn answers_slower_than_the_units_floor_make_no_motion_on_their_own() {
-        let floor = 1 << 10; // 0.0156 rad/s
-                             // A still camera's background activity: answers of -0.008 rad/s after a pause are
-                             // output, but the motion is not recent (no reversal can follow from them).
+        // A floor of 0.0156 rad/s. A still camera's background activity: answers of -0.008
+        // rad/s after a pause are output, but the motion is not recent (no reversal can
+        // follow from them).
+        let floor = 1 << 10;
         let mut a = Answers::new(floor);
         for _ in 0..3 {
             a.read(&reading_of(Some(-1 << 9), false));
