@@ -574,7 +574,9 @@ impl<L: crate::layout::Layout> OracleYaw<L> {
         let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
         let fields = [
             field(tau_a_us).stops_briefly(),
-            field(slow_tau).beyond_floor_over(tau_a_us),
+            field(slow_tau)
+                .beyond_floor_over(tau_a_us)
+                .stops_when_split(),
         ];
         let twins = crate::readout::calibrated::has_twins(&layout);
         let stride = OracleStrideChoice::new(crate::readout::calibrated::has_near(&layout));
@@ -1098,7 +1100,9 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
         let field = |tau| OracleField::new(&layout, focal, (cx, cy), tau, period_us);
         let fields = [
             field(tau_a_us).stops_briefly(),
-            field(slow_tau).beyond_floor_over(tau_a_us),
+            field(slow_tau)
+                .beyond_floor_over(tau_a_us)
+                .stops_when_split(),
         ];
         let slow = OracleParams {
             tau_fac: f64::from(crate::params::TAU_SLOW_US),
@@ -1783,6 +1787,13 @@ pub struct OracleField {
     hist: std::vec::Vec<[[f64; ORACLE_BINS]; 2]>,
     recent: f64,
     short: f64,
+    /// Decodes of positive sign since the last output, and leaky as `short`.
+    recent_positive: f64,
+    short_positive: f64,
+    /// Whether this field (the slow units') says nothing while its decodes of the last
+    /// [`crate::readout::field::SHORT_TAU_US`] split in sign
+    /// ([`crate::readout::field::SPLIT_STOP_TENTHS`]).
+    split_stop: bool,
     /// Decodes leaky over [`OracleField::brief_tau`], and whether this field (the paper's
     /// units') stops answering when they fall below half its rate.
     brief: f64,
@@ -1839,6 +1850,9 @@ impl OracleField {
             hist: std::vec![[[0.0; ORACLE_BINS]; 2]; 4 * COLS * ROWS],
             recent: 0.0,
             short: 0.0,
+            recent_positive: 0.0,
+            short_positive: 0.0,
+            split_stop: false,
             brief: 0.0,
             brief_stop: false,
             established: false,
@@ -1897,7 +1911,31 @@ impl OracleField {
         {
             *bin += 1.0;
             self.recent += 1.0;
+            if w > 0.0 {
+                self.recent_positive += 1.0;
+            }
         }
+    }
+
+    /// This field (the slow units') says nothing while its latest decodes split in sign
+    /// ([`OracleField::split_lately`]).
+    fn stops_when_split(mut self) -> Self {
+        self.split_stop = true;
+        self
+    }
+
+    /// Whether the decodes of the last [`crate::readout::field::SHORT_TAU_US`], at least
+    /// [`crate::readout::field::SPLIT_STOP_MIN_DECODES`], split in sign more evenly than
+    /// [`crate::readout::field::SPLIT_STOP_TENTHS`] in ten.
+    fn split_lately(&self) -> bool {
+        use crate::readout::field::{SPLIT_STOP_MIN_DECODES, SPLIT_STOP_TENTHS};
+        let negative = (self.short - self.short_positive).max(0.0);
+        let (more, fewer) = (
+            self.short_positive.max(negative),
+            self.short_positive.min(negative),
+        );
+        self.short >= SPLIT_STOP_MIN_DECODES as f64
+            && (10 - SPLIT_STOP_TENTHS) as f64 * more < SPLIT_STOP_TENTHS as f64 * fewer
     }
 
     /// This field (the paper's units') says nothing while its decodes stop at once
@@ -1957,6 +1995,8 @@ impl OracleField {
         }
         let short_keep = (-self.period / f64::from(crate::readout::field::SHORT_TAU_US)).exp();
         self.short = self.short * short_keep + self.recent;
+        self.short_positive = self.short_positive * short_keep + self.recent_positive;
+        self.recent_positive = 0.0;
         let brief_keep = (-self.period / self.brief_tau()).exp();
         self.brief = self.brief * brief_keep + self.recent;
         self.recent = 0.0;
@@ -2017,6 +2057,13 @@ impl OracleField {
                 estimate: None,
                 recent_needed: false,
                 stopped: true,
+            };
+        }
+        if self.split_stop && self.split_lately() {
+            return OracleReading {
+                estimate: None,
+                recent_needed: false,
+                stopped: false,
             };
         }
         let mut recent_needed = false;
