@@ -887,6 +887,9 @@ pub struct OracleReading {
     pub recent_needed: bool,
     /// It shows none because its decodes stopped (`FieldReading::stopped`).
     pub stopped: bool,
+    /// It shows none because the slow units' latest decodes split in sign
+    /// (`FieldReading::blind`).
+    pub blind: bool,
 }
 
 impl OracleReading {
@@ -900,6 +903,7 @@ impl OracleReading {
             }),
             recent_needed: self.recent_needed,
             stopped: self.stopped,
+            blind: self.blind,
         }
     }
 }
@@ -2057,6 +2061,7 @@ impl OracleField {
                 estimate: None,
                 recent_needed: false,
                 stopped: true,
+                blind: false,
             };
         }
         if self.split_stop && self.split_lately() {
@@ -2064,6 +2069,7 @@ impl OracleField {
                 estimate: None,
                 recent_needed: false,
                 stopped: false,
+                blind: true,
             };
         }
         let mut recent_needed = false;
@@ -2072,6 +2078,7 @@ impl OracleField {
             estimate,
             recent_needed: recent_needed && estimate.is_some(),
             stopped: false,
+            blind: false,
         }
     }
 

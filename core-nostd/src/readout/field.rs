@@ -606,6 +606,11 @@ pub struct FieldReading {
     /// [`BRIEF_STOP_RATIO`]): the motion stopped or changed, so the next answer is a new
     /// start, not the end of a brief gap ([`crate::readout::shared::Confirmation`]).
     pub stopped: bool,
+    /// No evidence because the slow units' decodes of the last [`SHORT_TAU_US`] split in sign
+    /// ([`SPLIT_STOP_TENTHS`]): the view shows nothing of a motion that may go on (the blind
+    /// stretch after a zero crossing), so the answer a moment ago stays recent
+    /// ([`crate::readout::shared::BLIND_HOLD_READINGS`]).
+    pub blind: bool,
 }
 
 impl FieldReading {
@@ -624,6 +629,7 @@ impl FieldReading {
             estimate,
             recent_needed: false,
             stopped: false,
+            blind: false,
         }
     }
 }
@@ -1105,7 +1111,10 @@ impl Field {
             return FieldReading::STOPPED;
         }
         if pop == Population::Slow && self.slow_split_lately() {
-            return FieldReading::NOTHING;
+            return FieldReading {
+                blind: true,
+                ..FieldReading::NOTHING
+            };
         }
         if pop == Population::Fast && self.stopped_at_once(rate) {
             return FieldReading::STOPPED;
@@ -1286,7 +1295,7 @@ impl Field {
         let reading = |estimate| FieldReading {
             estimate,
             recent_needed,
-            stopped: false,
+            ..FieldReading::NOTHING
         };
         match choice {
             BandChoice::Nothing => return FieldReading::NOTHING,
