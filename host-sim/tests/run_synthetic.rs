@@ -3,7 +3,7 @@
 //! samples included, as `host-sim eval` takes it), correlation >= 0.94 with the
 //! ground-truth yaw rate on each and RMSE <= 24 % of its peak on dev01 (the noise texture
 //! decodes about 20 % low, see the README's figures), <= 11 % on dev02, <= 13 % on dev03,
-//! <= 25 % on any other sequence (measured: 0.952 / 0.981 / 0.998 and 19.4 / 11.0 / 2.5 %;
+//! <= 25 % on any other sequence (measured: 0.956 / 0.981 / 0.998 and 18.7 / 11.0 / 2.5 %;
 //! 0.953 and 19.1 / 11.0 / 2.6 % before the slow units stopped answering while their latest
 //! decodes split in sign; dev02 11.3 % before a gap that began with the decodes stopping, at a yaw step, made the
 //! next answer a new start, 10.8 % before a column band read its rows above alone where the
