@@ -65,9 +65,9 @@ pub use super::field::FRESH_READINGS;
 
 /// Readings after an answer that say "no evidence" because the view is blind
 /// ([`FieldReading::blind`]: the slow units' latest decodes split in sign) and leave that
-/// answer's age as it was, at most: 200 ms at 1 kHz. After a turn's zero crossing over a smooth texture
-/// the sensor fires little but background activity for 120-180 ms; the motion goes on, and
-/// when the view comes back, the rules for the moment after an answer (a reversal's first
+/// answer's age as it was, at most: 200 ms at 1 kHz. After a turn's zero crossing over a
+/// smooth texture the sensor fires little but background activity for 120-180 ms; the motion
+/// goes on, and when the view comes back, the rules for the moment after an answer (a reversal's first
 /// values of one sign on each side) still apply (dev01 19.4 → 18.7 % RMSE / peak, its answer
 /// after the zero crossing at 1.43 s 36 ms sooner; 100 ms: 18.9 %). A longer blindness ages
 /// the answer as any other "no evidence" does: a hover's pause with background activity ends
