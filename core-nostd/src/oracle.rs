@@ -893,6 +893,14 @@ pub struct OracleReading {
 }
 
 impl OracleReading {
+    /// No rotation, for want of evidence.
+    const NOTHING: Self = Self {
+        estimate: None,
+        recent_needed: false,
+        stopped: false,
+        blind: false,
+    };
+
     /// The same reading in the fixed-point gate's units (Q16 rad/s; the estimate is clamped
     /// to 20 rad/s, so it fits).
     fn fixed(&self) -> crate::readout::field::FieldReading {
@@ -1932,14 +1940,12 @@ impl OracleField {
     /// [`crate::readout::field::SPLIT_STOP_MIN_DECODES`], split in sign more evenly than
     /// [`crate::readout::field::SPLIT_STOP_TENTHS`] in ten.
     fn split_lately(&self) -> bool {
-        use crate::readout::field::{SPLIT_STOP_MIN_DECODES, SPLIT_STOP_TENTHS};
-        let negative = (self.short - self.short_positive).max(0.0);
-        let (more, fewer) = (
-            self.short_positive.max(negative),
-            self.short_positive.min(negative),
-        );
-        self.short >= SPLIT_STOP_MIN_DECODES as f64
-            && (10 - SPLIT_STOP_TENTHS) as f64 * more < SPLIT_STOP_TENTHS as f64 * fewer
+        use crate::readout::field::{splits_in_sign, SPLIT_STOP_MIN_DECODES};
+        splits_in_sign(
+            self.short,
+            self.short_positive,
+            SPLIT_STOP_MIN_DECODES as f64,
+        )
     }
 
     /// This field (the paper's units') says nothing while its decodes stop at once
@@ -2058,18 +2064,14 @@ impl OracleField {
             || (self.brief_stop && self.stopped_at_once(rate))
         {
             return OracleReading {
-                estimate: None,
-                recent_needed: false,
                 stopped: true,
-                blind: false,
+                ..OracleReading::NOTHING
             };
         }
         if self.split_stop && self.split_lately() {
             return OracleReading {
-                estimate: None,
-                recent_needed: false,
-                stopped: false,
                 blind: true,
+                ..OracleReading::NOTHING
             };
         }
         let mut recent_needed = false;
@@ -2077,8 +2079,7 @@ impl OracleField {
         OracleReading {
             estimate,
             recent_needed: recent_needed && estimate.is_some(),
-            stopped: false,
-            blind: false,
+            ..OracleReading::NOTHING
         }
     }
 

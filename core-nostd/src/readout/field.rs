@@ -278,6 +278,25 @@ pub const SPLIT_STOP_TENTHS: u64 = 6;
 /// are the stop's business, [`STOPPED_RATIO`]).
 pub const SPLIT_STOP_MIN_DECODES: u64 = 4;
 
+/// The rule of [`SPLIT_STOP_TENTHS`], for the fixed-point field and the f64 oracle's: whether
+/// `all` decodes, `positive` of them positive (clamped to `all`), split in sign more evenly
+/// than [`SPLIT_STOP_TENTHS`] in ten, where `all` reaches `min_all` (the units' count of
+/// [`SPLIT_STOP_MIN_DECODES`]).
+pub(crate) fn splits_in_sign<T>(all: T, positive: T, min_all: T) -> bool
+where
+    T: Copy + PartialOrd + core::ops::Sub<Output = T> + core::ops::Mul<Output = T> + From<u8>,
+{
+    let positive = if positive < all { positive } else { all };
+    let negative = all - positive;
+    let (more, fewer) = if positive < negative {
+        (negative, positive)
+    } else {
+        (positive, negative)
+    };
+    let tenths = T::from(SPLIT_STOP_TENTHS as u8);
+    all >= min_all && (T::from(10) - tenths) * more < tenths * fewer
+}
+
 /// Net sign agreement `(P - N)² / (P + N)` (in samples) that a region of decodes with random
 /// signs exceeds about one time in 20 (it is about half a sample times a χ² variable with one
 /// degree of freedom, whose 95th percentile is 3.84): only what a region shows beyond it
@@ -921,7 +940,13 @@ impl Field {
             *halved = shift;
             *weight = w.clamp(1, u64::from(2 * UNIT_WEIGHT)) as u32;
         }
-        self.slow_positive_mass = self.slow_positive_mass();
+        // The sum just taken holds unless the halving truncated the bins.
+        let [_, slow_shift] = shifts;
+        self.slow_positive_mass = if slow_shift == 0 {
+            positive_mass
+        } else {
+            self.slow_positive_mass()
+        };
         // Counted in the paper's units' weight: halved with it.
         let [fast_shift, _] = shifts;
         if fast_shift > 0 {
@@ -1158,11 +1183,11 @@ impl Field {
                 .copied()
                 .unwrap_or(0),
         );
-        let positive = u64::from(self.short_slow_positive).min(all);
-        let negative = all.saturating_sub(positive);
-        let (more, fewer) = (positive.max(negative), positive.min(negative));
-        all >= SPLIT_STOP_MIN_DECODES << 16
-            && (10 - SPLIT_STOP_TENTHS) * more < SPLIT_STOP_TENTHS * fewer
+        splits_in_sign(
+            all,
+            u64::from(self.short_slow_positive),
+            SPLIT_STOP_MIN_DECODES << 16,
+        )
     }
 
     /// Whether the paper's units' decodes, at `rate` (Q16 samples per µs) over their
