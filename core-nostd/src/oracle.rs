@@ -1773,6 +1773,11 @@ fn oracle_bin(rate: f64) -> usize {
         .clamp(0.0, ORACLE_BINS as f64 - 1.0) as usize
 }
 
+/// Index of region `(side, column band, vertical side, row band)` (as the fixed-point field's).
+fn index_of((side, b, v, r): (usize, usize, usize, usize)) -> usize {
+    ((side * COLS + b) * 2 + v) * ROWS + r
+}
+
 /// The field estimator of [`crate::readout::field`] in f64, one population: leaky signed
 /// histograms of `log2 |rate|` per region, decayed exactly each period; per region the median
 /// and its variance from the interquartile range; per column band and side the intercept at
@@ -1783,7 +1788,8 @@ fn oracle_bin(rate: f64) -> usize {
 /// [`ABOVE_SUPPORT`](crate::readout::field::ABOVE_SUPPORT) row bands above the principal row,
 /// the topmost among them, have values, and if neither sign holds more than a quarter of the
 /// weight; no answer when the decodes have all but stopped (and, for the paper's units, when
-/// their latest decodes fall below half the histograms' rate).
+/// their latest decodes fall below half the histograms' rate), nor a new start that its latest
+/// decodes above the principal row do not support.
 pub struct OracleField {
     focal: f64,
     cx: f64,
@@ -1802,6 +1808,10 @@ pub struct OracleField {
     /// Decodes of positive sign since the last output, and leaky as `short`.
     recent_positive: f64,
     short_positive: f64,
+    /// Decodes above the principal row since the last output, `[all, positive]`, and leaky as
+    /// `short` (the fixed-point field's rule for a new start, `Field::start_against`).
+    recent_upper: [f64; 2],
+    short_upper: [f64; 2],
     /// Whether this field (the slow units') says nothing while its decodes of the last
     /// [`crate::readout::field::SHORT_TAU_US`] split in sign
     /// ([`crate::readout::field::SPLIT_STOP_TENTHS`]).
@@ -1864,6 +1874,8 @@ impl OracleField {
             short: 0.0,
             recent_positive: 0.0,
             short_positive: 0.0,
+            recent_upper: [0.0; 2],
+            short_upper: [0.0; 2],
             split_stop: false,
             brief: 0.0,
             brief_stop: false,
@@ -1907,14 +1919,15 @@ impl OracleField {
 
     /// Index of the region of a pixel (as [`crate::readout::field::FieldGeometry::region`]).
     fn region_index(&self, x: u16, y: u16) -> usize {
-        let (side, b, v, r) = self.region(x, y);
-        ((side * COLS + b) * 2 + v) * ROWS + r
+        index_of(self.region(x, y))
     }
 
     /// One decoded rate (rad/s, signed) at pixel `(x, y)`.
     pub fn add(&mut self, x: u16, y: u16, w: f64) {
         let bin = oracle_bin(w.abs());
-        let idx = self.region_index(x, y);
+        let region = self.region(x, y);
+        let (_, _, v, _) = region;
+        let idx = index_of(region);
         if let Some(bin) = self
             .hist
             .get_mut(idx)
@@ -1925,6 +1938,13 @@ impl OracleField {
             self.recent += 1.0;
             if w > 0.0 {
                 self.recent_positive += 1.0;
+            }
+            if v == 0 {
+                let [all, positive] = &mut self.recent_upper;
+                *all += 1.0;
+                if w > 0.0 {
+                    *positive += 1.0;
+                }
             }
         }
     }
@@ -1946,6 +1966,15 @@ impl OracleField {
             self.short_positive,
             SPLIT_STOP_MIN_DECODES as f64,
         )
+    }
+
+    /// Whether a new start of sign `negative` lacks the support of the latest decodes above the
+    /// principal row (the fixed-point field's `Field::start_against`).
+    fn start_against(&self, negative: bool) -> bool {
+        use crate::readout::field::{short_of_sign, SPLIT_STOP_MIN_DECODES};
+        let [all, positive] = self.short_upper;
+        let agreeing = if negative { all - positive } else { positive };
+        short_of_sign(all, agreeing, SPLIT_STOP_MIN_DECODES as f64)
     }
 
     /// This field (the paper's units') says nothing while its decodes stop at once
@@ -2007,6 +2036,14 @@ impl OracleField {
         self.short = self.short * short_keep + self.recent;
         self.short_positive = self.short_positive * short_keep + self.recent_positive;
         self.recent_positive = 0.0;
+        for (short, recent) in self
+            .short_upper
+            .iter_mut()
+            .zip(self.recent_upper.iter_mut())
+        {
+            *short = *short * short_keep + *recent;
+            *recent = 0.0;
+        }
         let brief_keep = (-self.period / self.brief_tau()).exp();
         self.brief = self.brief * brief_keep + self.recent;
         self.recent = 0.0;
@@ -2076,6 +2113,9 @@ impl OracleField {
         }
         let mut recent_needed = false;
         let estimate = self.estimate_noting(&mut recent_needed);
+        if estimate.is_some_and(|v| self.recent_motion.is_none() && self.start_against(v < 0.0)) {
+            return OracleReading::NOTHING;
+        }
         OracleReading {
             estimate,
             recent_needed: recent_needed && estimate.is_some(),

@@ -122,6 +122,10 @@
 //!   evenly than 60 / 40 ([`SPLIT_STOP_TENTHS`]): after a turn's zero crossing over a smooth
 //!   texture only background activity decodes for 0.1-0.2 s, and their 100 ms histograms
 //!   would answer the old direction.
+//! - A new start (no answer within the last 100 ms) also says nothing unless at least 6 in 10
+//!   of the answering population's decodes above the principal row over the last
+//!   [`SHORT_TAU_US`] take its sign (`Field::start_against`): the first onsets after a pause
+//!   come a random part of a crossing late and take either sign.
 //! - A trigger goes to the slow units only where the paper's units do not burst, so the slow
 //!   units' histograms end at the paper's units' floor (the slowest rotation they time: 0.08
 //!   rad/s across one pixel at a DAVIS346's principal point), and a turn whose crossings
@@ -279,22 +283,32 @@ pub const SPLIT_STOP_TENTHS: u64 = 6;
 pub const SPLIT_STOP_MIN_DECODES: u64 = 4;
 
 /// The rule of [`SPLIT_STOP_TENTHS`], for the fixed-point field and the f64 oracle's: whether
-/// `all` decodes, `positive` of them positive (clamped to `all`), split in sign more evenly
-/// than [`SPLIT_STOP_TENTHS`] in ten, where `all` reaches `min_all` (the units' count of
+/// fewer than [`SPLIT_STOP_TENTHS`] in ten of `all` decodes take a sign, `agreeing` of them
+/// (clamped to `all`), where `all` reaches `min_all` (the units' count of
 /// [`SPLIT_STOP_MIN_DECODES`]).
+pub(crate) fn short_of_sign<T>(all: T, agreeing: T, min_all: T) -> bool
+where
+    T: Copy + PartialOrd + core::ops::Mul<Output = T> + From<u8>,
+{
+    let agreeing = if agreeing < all { agreeing } else { all };
+    all >= min_all && T::from(10) * agreeing < T::from(SPLIT_STOP_TENTHS as u8) * all
+}
+
+/// Whether `all` decodes, `positive` of them positive (clamped to `all`), split in sign more
+/// evenly than [`SPLIT_STOP_TENTHS`] in ten: the majority sign falls short
+/// ([`short_of_sign`]), where `all` reaches `min_all`.
 pub(crate) fn splits_in_sign<T>(all: T, positive: T, min_all: T) -> bool
 where
     T: Copy + PartialOrd + core::ops::Sub<Output = T> + core::ops::Mul<Output = T> + From<u8>,
 {
     let positive = if positive < all { positive } else { all };
     let negative = all - positive;
-    let (more, fewer) = if positive < negative {
-        (negative, positive)
+    let more = if positive < negative {
+        negative
     } else {
-        (positive, negative)
+        positive
     };
-    let tenths = T::from(SPLIT_STOP_TENTHS as u8);
-    all >= min_all && (T::from(10) - tenths) * more < tenths * fewer
+    short_of_sign(all, more, min_all)
 }
 
 /// Net sign agreement `(P - N)² / (P + N)` (in samples) that a region of decodes with random
@@ -544,6 +558,12 @@ const fn region_index(side: usize, band: usize, vside: usize, row: usize) -> usi
     ((side * COL_BANDS + band) * 2 + vside) * ROW_BANDS + row
 }
 
+/// Whether region `region` lies above the principal row (vertical side 0).
+#[inline]
+const fn is_above(region: usize) -> bool {
+    (region / ROW_BANDS).is_multiple_of(2)
+}
+
 /// A region's signed median rate (Q16 rad/s) and the variance of that median (Q32, from the
 /// interquartile range over the number of samples: the aperture problem makes decoded rates
 /// spread where edges also move vertically, Cauchy-like around the true horizontal flow).
@@ -701,6 +721,10 @@ pub struct Field {
     floor_bin: [u8; REGIONS],
     /// Decodes per population, leaky over [`SHORT_TAU_US`] (Q16 samples).
     short: [u32; 2],
+    /// Decodes per population in the regions above the principal row since the last output,
+    /// `[all, positive]`, and leaky as `short` (for [`Field::start_against`]).
+    recent_upper: [[u32; 2]; 2],
+    short_upper: [[u32; 2]; 2],
     /// The slow units' decodes of positive sign, leaky over [`SHORT_TAU_US`] (Q16 samples),
     /// counted once per output from their histograms' positive mass (no work per decode).
     short_slow_positive: u32,
@@ -758,6 +782,8 @@ impl Field {
             beyond_floor: [[0; 2]; REGIONS],
             floor_bin: [0; REGIONS],
             short: [0; 2],
+            recent_upper: [[0; 2]; 2],
+            short_upper: [[0; 2]; 2],
             short_slow_positive: 0,
             slow_positive_mass: 0,
             short_keep_q31: keep(SHORT_TAU_US),
@@ -860,6 +886,12 @@ impl Field {
         if let Some(c) = self.recent.get_mut(pop as usize) {
             *c = c.saturating_add(1);
         }
+        if is_above(region) {
+            if let Some([all, pos]) = self.recent_upper.get_mut(pop as usize) {
+                *all = all.saturating_add(1);
+                *pos = pos.saturating_add(u32::from(positive));
+            }
+        }
     }
 
     /// Counts a decode of the paper's units that lies within an octave above their floor
@@ -893,6 +925,15 @@ impl Field {
         let [fast, _] = self.recent;
         self.brief = leak(self.brief, self.brief_keep_q31, fast);
         for (short, recent) in self.short.iter_mut().zip(self.recent.iter_mut()) {
+            *short = leak(*short, self.short_keep_q31, *recent);
+            *recent = 0;
+        }
+        for (short, recent) in self
+            .short_upper
+            .iter_mut()
+            .flatten()
+            .zip(self.recent_upper.iter_mut().flatten())
+        {
             *short = leak(*short, self.short_keep_q31, *recent);
             *recent = 0;
         }
@@ -1145,6 +1186,11 @@ impl Field {
             return FieldReading::STOPPED;
         }
         let reading = self.population_estimate(pop);
+        if let FieldEstimate::Rotation(v) = reading.estimate {
+            if self.recent_motion.is_none() && self.start_against(pop, v < 0) {
+                return FieldReading::NOTHING;
+            }
+        }
         let estimate = match (reading.estimate, pop) {
             // The slow units' histograms remember 100 ms, more than it takes a turn to slow
             // down through them: once their decodes thin out below 4/5 of the histograms'
@@ -1164,6 +1210,33 @@ impl Field {
             estimate,
             ..reading
         }
+    }
+
+    /// Whether a new start of sign `negative` from `pop` lacks the support of its latest decodes
+    /// above the principal row: fewer than [`SPLIT_STOP_TENTHS`] in ten of them, where there are
+    /// [`SPLIT_STOP_MIN_DECODES`] or more over the last [`SHORT_TAU_US`], take that sign. A new
+    /// start is one the readout did not answer within the last
+    /// [`RECENT_READINGS`](crate::readout::shared::RECENT_READINGS) readings
+    /// ([`Field::set_recent_motion`]); it then says "no evidence". When a hovering drone starts
+    /// to turn after a pause, each pixel's first onset comes when its brightness has moved a
+    /// contrast step from the level it kept through the pause, a random part of an edge's
+    /// crossing late: the first decodes take either sign about evenly in every region, and a
+    /// region's median of them has a random sign (hover seed 41, spike readout: 43 / 38
+    /// decodes over the 20 ms before it answered +0.35 rad/s of a -0.11 rad/s turn). The rows
+    /// above the principal row alone: people walking past below the horizon decode their own
+    /// way while the camera turns (hover seed 631 with two people: the whole field's decodes
+    /// 55-60 % with the turn, those above it 95 %).
+    fn start_against(&self, pop: Population, negative: bool) -> bool {
+        let Some(&[all, positive]) = self.short_upper.get(pop as usize) else {
+            return false;
+        };
+        let (all, positive) = (u64::from(all), u64::from(positive));
+        let agreeing = if negative {
+            all.saturating_sub(positive)
+        } else {
+            positive
+        };
+        short_of_sign(all, agreeing, SPLIT_STOP_MIN_DECODES << 16)
     }
 
     /// The slow units' mass of positive decodes, over all regions.
@@ -2986,6 +3059,41 @@ mod tests {
             }
             assert_answer(&f, answers, (0.06, 0.03), &case);
             assert!(!f.reading().stopped, "{case}");
+        }
+    }
+
+    #[test]
+    fn a_new_start_needs_most_of_the_latest_decodes_above_the_principal_row_on_its_side() {
+        // 30 ms of the paper's units at 0.3 rad/s: every region below the principal row all
+        // positive, every region above it `positive` in 9 positive (each region's signed median
+        // then lies on the positive side whenever `positive` >= 5).
+        let cases = [
+            (5, None, false),
+            (5, recent(false, false), true),
+            (6, None, true),
+            (9, None, true),
+        ];
+        for (positive, recent_motion, answers) in cases {
+            let mut f = field();
+            f.set_recent_motion(recent_motion);
+            for _ in 0..30 {
+                for side in 0..2 {
+                    for band in 0..COL_BANDS {
+                        for row in 0..ROW_BANDS {
+                            for k in 0..9 {
+                                let (x, y) = pixel(side, band, true, row);
+                                f.add(Population::Fast, x, y, log2_rate(300), k < positive);
+                                let (x, y) = pixel(side, band, false, row);
+                                f.add(Population::Fast, x, y, log2_rate(300), true);
+                            }
+                        }
+                    }
+                }
+                f.age();
+            }
+            let case = (positive, recent_motion);
+            assert_answer(&f, answers, (0.3, 0.05), &case);
+            assert!(!f.reading().stopped && !f.reading().blind, "{case:?}");
         }
     }
 
