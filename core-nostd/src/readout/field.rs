@@ -276,7 +276,9 @@ pub const BRIEF_MIN_DECODES: u64 = 16;
 /// 2.8 %). The paper's units' 10 ms histograms do not outlive the motion so (and they have
 /// their brief stop); and under forward motion their field splits in sign as a whole, the two
 /// halves moving opposite ways (asking it of them too, at 65 / 35, took the design scenes
-/// 11.68 → 12.77 % RMSE / peak, against 11.49 % for the slow units alone).
+/// 11.68 → 12.77 % RMSE / peak, against 11.49 % for the slow units alone). The same share of
+/// the latest decodes above the principal row decides whether a new start may answer
+/// (`Field::start_against`).
 pub const SPLIT_STOP_TENTHS: u64 = 6;
 /// [`SPLIT_STOP_TENTHS`] applies from this many decodes over the last [`SHORT_TAU_US`] (fewer
 /// are the stop's business, [`STOPPED_RATIO`]).
