@@ -1805,13 +1805,10 @@ pub struct OracleField {
     hist: std::vec::Vec<[[f64; ORACLE_BINS]; 2]>,
     recent: f64,
     short: f64,
-    /// Decodes of positive sign since the last output, and leaky as `short`.
-    recent_positive: f64,
-    short_positive: f64,
-    /// Decodes above the principal row since the last output, `[all, positive]`, and leaky as
-    /// `short` (the fixed-point field's rule for a new start, `Field::start_against`).
-    recent_upper: [f64; 2],
-    short_upper: [f64; 2],
+    /// Decodes since the last output `[positive, above the principal row, positive above
+    /// it]`, and leaky as `short` (the fixed-point field's `SignCounts`).
+    recent_signs: [f64; 3],
+    short_signs: [f64; 3],
     /// Whether this field (the slow units') says nothing while its decodes of the last
     /// [`crate::readout::field::SHORT_TAU_US`] split in sign
     /// ([`crate::readout::field::SPLIT_STOP_TENTHS`]).
@@ -1872,10 +1869,8 @@ impl OracleField {
             hist: std::vec![[[0.0; ORACLE_BINS]; 2]; 4 * COLS * ROWS],
             recent: 0.0,
             short: 0.0,
-            recent_positive: 0.0,
-            short_positive: 0.0,
-            recent_upper: [0.0; 2],
-            short_upper: [0.0; 2],
+            recent_signs: [0.0; 3],
+            short_signs: [0.0; 3],
             split_stop: false,
             brief: 0.0,
             brief_stop: false,
@@ -1936,15 +1931,13 @@ impl OracleField {
         {
             *bin += 1.0;
             self.recent += 1.0;
-            if w > 0.0 {
-                self.recent_positive += 1.0;
-            }
-            if v == 0 {
-                let [all, positive] = &mut self.recent_upper;
-                *all += 1.0;
-                if w > 0.0 {
-                    *positive += 1.0;
-                }
+            let (positive, above) = (w > 0.0, v == 0);
+            for (count, counts) in
+                self.recent_signs
+                    .iter_mut()
+                    .zip([positive, above, above && positive])
+            {
+                *count += f64::from(u8::from(counts));
             }
         }
     }
@@ -1961,18 +1954,15 @@ impl OracleField {
     /// [`crate::readout::field::SPLIT_STOP_TENTHS`] in ten.
     fn split_lately(&self) -> bool {
         use crate::readout::field::{splits_in_sign, SPLIT_STOP_MIN_DECODES};
-        splits_in_sign(
-            self.short,
-            self.short_positive,
-            SPLIT_STOP_MIN_DECODES as f64,
-        )
+        let [positive, ..] = self.short_signs;
+        splits_in_sign(self.short, positive, SPLIT_STOP_MIN_DECODES as f64)
     }
 
     /// Whether a new start of sign `negative` lacks the support of the latest decodes above the
     /// principal row (the fixed-point field's `Field::start_against`).
     fn start_against(&self, negative: bool) -> bool {
         use crate::readout::field::{short_of_sign, SPLIT_STOP_MIN_DECODES};
-        let [all, positive] = self.short_upper;
+        let [_, all, positive] = self.short_signs;
         let agreeing = if negative { all - positive } else { positive };
         short_of_sign(all, agreeing, SPLIT_STOP_MIN_DECODES as f64)
     }
@@ -2034,12 +2024,10 @@ impl OracleField {
         }
         let short_keep = (-self.period / f64::from(crate::readout::field::SHORT_TAU_US)).exp();
         self.short = self.short * short_keep + self.recent;
-        self.short_positive = self.short_positive * short_keep + self.recent_positive;
-        self.recent_positive = 0.0;
         for (short, recent) in self
-            .short_upper
+            .short_signs
             .iter_mut()
-            .zip(self.recent_upper.iter_mut())
+            .zip(self.recent_signs.iter_mut())
         {
             *short = *short * short_keep + *recent;
             *recent = 0.0;

@@ -196,21 +196,32 @@ fn check_spikes(name: &str, f: &Figures, s: &Figures, ratio: f64) {
     assert!(r <= ratio, "{name}: spike / calibrated RMSE {r:.2}");
 }
 
+/// The spike readout's own RMSE / peak at most `rmse_rel`, where its ratio to the calibrated
+/// readout's is held looser than the target's 1.25.
+fn check_spike_rmse(s: &Figures, rmse_rel: f64) {
+    assert!(
+        s.rmse_rel <= rmse_rel,
+        "spike readout: RMSE {:.1} %",
+        s.rmse_rel * 100.0
+    );
+}
+
 /// A camera that does not turn: both readouts' RMS output ("no evidence" as 0) at most 0.03
 /// rad/s.
 fn check_still(name: &str, f: &Figures, s: &Figures) {
-    report(name, f);
-    report(&format!("{name}, spike readout"), s);
-    assert!(
-        f.rms_out <= 0.03,
-        "{name}: RMS output {:.3} rad/s",
-        f.rms_out
-    );
-    assert!(
-        s.rms_out <= 0.03,
-        "{name}, spike readout: RMS output {:.3} rad/s",
-        s.rms_out
-    );
+    for (readout, figures) in readouts(f, s) {
+        report(&format!("{name}, {readout}"), figures);
+        assert!(
+            figures.rms_out <= 0.03,
+            "{name}, {readout}: RMS output {:.3} rad/s",
+            figures.rms_out
+        );
+    }
+}
+
+/// Both readouts' figures, each with its name.
+fn readouts<'a>(f: &'a Figures, s: &'a Figures) -> [(&'static str, &'a Figures); 2] {
+    [("calibrated", f), ("spike readout", s)]
 }
 
 #[test]
@@ -246,11 +257,7 @@ fn drone_forward_flight() {
 fn a_fast_turn_while_pitching_and_rolling() {
     let (f, s) = scene(Regime::Drone, 304, 4.0);
     check_turning("fast turn with wobble", &f, &s, (0.98, 0.05, 0.1), 1.3);
-    assert!(
-        s.rmse_rel <= 0.06,
-        "spike readout: RMSE {:.1} %",
-        s.rmse_rel * 100.0
-    );
+    check_spike_rmse(&s, 0.06);
 }
 
 #[test]
@@ -455,7 +462,7 @@ fn a_turn_through_zero_over_a_smooth_texture_is_not_read_the_old_way() {
         cfg.texture = host_sim::synth::texture::TextureKind::Noise;
     });
     check_turning("rotation over value noise", &f, &s, (0.97, 0.16, 0.12), 1.1);
-    for (name, figures) in [("calibrated", &f), ("spike readout", &s)] {
+    for (name, figures) in readouts(&f, &s) {
         assert!(
             figures.wrong_way <= 0.03,
             "{name}: the other way on {:.1} % of the turning samples",
@@ -637,11 +644,7 @@ fn people_walking_past_a_drone_that_turns_under_a_skyline() {
         (0.93, 0.29, 0.1),
         1.3,
     );
-    assert!(
-        s.rmse_rel <= 0.3,
-        "spike readout: RMSE {:.1} %",
-        s.rmse_rel * 100.0
-    );
+    check_spike_rmse(&s, 0.3);
 }
 
 /// A hovering drone (seed 501, rendered after the other rules) that stops turning at 1.6 s while three people walk
@@ -668,7 +671,7 @@ fn people_walking_on_past_a_drone_that_stops_turning() {
 
 /// Asserts that neither readout answered the other way than a turn by 0.05 rad/s or more.
 fn assert_starts_the_right_way(name: &str, f: &Figures, s: &Figures) {
-    for (readout, figures) in [("calibrated", f), ("spike readout", s)] {
+    for (readout, figures) in readouts(f, s) {
         assert!(
             figures.largest_wrong_way < 0.05,
             "{name}, {readout}: {:.3} rad/s the other way",

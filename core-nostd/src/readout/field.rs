@@ -675,6 +675,13 @@ impl FieldReading {
     }
 }
 
+/// One population's decodes by sign and place: `[positive, above the principal row, positive
+/// above the principal row]` (all of them are [`Field`]'s `recent` / `short`).
+type SignCounts = [u32; SIGN_COUNTS];
+
+/// Entries of [`SignCounts`].
+const SIGN_COUNTS: usize = 3;
+
 /// Which units a decoded rate came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Population {
@@ -723,15 +730,11 @@ pub struct Field {
     floor_bin: [u8; REGIONS],
     /// Decodes per population, leaky over [`SHORT_TAU_US`] (Q16 samples).
     short: [u32; 2],
-    /// Decodes per population in the regions above the principal row since the last output,
-    /// `[all, positive]`, and leaky as `short` (for [`Field::start_against`]).
-    recent_upper: [[u32; 2]; 2],
-    short_upper: [[u32; 2]; 2],
-    /// The slow units' decodes of positive sign, leaky over [`SHORT_TAU_US`] (Q16 samples),
-    /// counted once per output from their histograms' positive mass (no work per decode).
-    short_slow_positive: u32,
-    /// The slow units' positive mass (summed over the regions) after the last output.
-    slow_positive_mass: u64,
+    /// Decodes per population since the last output by sign and place ([`SignCounts`]), and
+    /// leaky as `short` (Q16 samples): for the slow units' split stop
+    /// ([`Field::slow_split_lately`]) and a new start ([`Field::start_against`]).
+    recent_signs: [SignCounts; 2],
+    short_signs: [SignCounts; 2],
     /// Per-period decay of `short` (Q1.31).
     short_keep_q31: u32,
     /// The paper's units' decodes, leaky over `brief_tau_us` (Q16 samples).
@@ -784,10 +787,8 @@ impl Field {
             beyond_floor: [[0; 2]; REGIONS],
             floor_bin: [0; REGIONS],
             short: [0; 2],
-            recent_upper: [[0; 2]; 2],
-            short_upper: [[0; 2]; 2],
-            short_slow_positive: 0,
-            slow_positive_mass: 0,
+            recent_signs: [[0; SIGN_COUNTS]; 2],
+            short_signs: [[0; SIGN_COUNTS]; 2],
             short_keep_q31: keep(SHORT_TAU_US),
             brief: 0,
             brief_keep_q31: keep(brief_tau_us),
@@ -888,11 +889,11 @@ impl Field {
         if let Some(c) = self.recent.get_mut(pop as usize) {
             *c = c.saturating_add(1);
         }
-        if is_above(region) {
-            if let Some([all, pos]) = self.recent_upper.get_mut(pop as usize) {
-                *all = all.saturating_add(1);
-                *pos = pos.saturating_add(u32::from(positive));
-            }
+        if let Some([pos, above, above_pos]) = self.recent_signs.get_mut(pop as usize) {
+            let above_now = is_above(region);
+            *pos = pos.saturating_add(u32::from(positive));
+            *above = above.saturating_add(u32::from(above_now));
+            *above_pos = above_pos.saturating_add(u32::from(above_now && positive));
         }
     }
 
@@ -931,31 +932,14 @@ impl Field {
             *recent = 0;
         }
         for (short, recent) in self
-            .short_upper
+            .short_signs
             .iter_mut()
             .flatten()
-            .zip(self.recent_upper.iter_mut().flatten())
+            .zip(self.recent_signs.iter_mut().flatten())
         {
             *short = leak(*short, self.short_keep_q31, *recent);
             *recent = 0;
         }
-        // The slow units' positive decodes since the last output: the growth of their positive
-        // mass, all of it added at the weight of this period (Q16 samples).
-        let positive_mass = self.slow_positive_mass();
-        let weight = u64::from(
-            self.weight
-                .get(Population::Slow as usize)
-                .copied()
-                .unwrap_or(UNIT_WEIGHT),
-        );
-        let positive_q16 = div_u64(
-            positive_mass.saturating_sub(self.slow_positive_mass) << 16,
-            weight.max(1),
-        );
-        self.short_slow_positive =
-            ((u64::from(self.short_slow_positive) * u64::from(self.short_keep_q31)) >> 31)
-                .saturating_add(positive_q16)
-                .min(u64::from(u32::MAX)) as u32;
         let mut shifts = [0u32; 2];
         for (((((weight, grow), hist), mass), occupied), halved) in self
             .weight
@@ -983,13 +967,6 @@ impl Field {
             *halved = shift;
             *weight = w.clamp(1, u64::from(2 * UNIT_WEIGHT)) as u32;
         }
-        // The sum just taken holds unless the halving truncated the bins.
-        let [_, slow_shift] = shifts;
-        self.slow_positive_mass = if slow_shift == 0 {
-            positive_mass
-        } else {
-            self.slow_positive_mass()
-        };
         // Counted in the paper's units' weight: halved with it.
         let [fast_shift, _] = shifts;
         if fast_shift > 0 {
@@ -1229,7 +1206,7 @@ impl Field {
     /// way while the camera turns (hover seed 631 with two people: the whole field's decodes
     /// 55-60 % with the turn, those above it 95 %).
     fn start_against(&self, pop: Population, negative: bool) -> bool {
-        let Some(&[all, positive]) = self.short_upper.get(pop as usize) else {
+        let Some(&[_, all, positive]) = self.short_signs.get(pop as usize) else {
             return false;
         };
         let (all, positive) = (u64::from(all), u64::from(positive));
@@ -1241,26 +1218,19 @@ impl Field {
         short_of_sign(all, agreeing, SPLIT_STOP_MIN_DECODES << 16)
     }
 
-    /// The slow units' mass of positive decodes, over all regions.
-    fn slow_positive_mass(&self) -> u64 {
-        self.mass
-            .get(Population::Slow as usize)
-            .map_or(0, |m| m.iter().map(|&[_, pos]| pos).sum())
-    }
-
     /// Whether the slow units' decodes over the last [`SHORT_TAU_US`],
     /// [`SPLIT_STOP_MIN_DECODES`] or more, split in sign more evenly than
     /// [`SPLIT_STOP_TENTHS`] in ten.
     fn slow_split_lately(&self) -> bool {
-        let all = u64::from(
-            self.short
-                .get(Population::Slow as usize)
-                .copied()
-                .unwrap_or(0),
-        );
+        let slow = Population::Slow as usize;
+        let (Some(&all), Some(&[positive, ..])) =
+            (self.short.get(slow), self.short_signs.get(slow))
+        else {
+            return false;
+        };
         splits_in_sign(
-            all,
-            u64::from(self.short_slow_positive),
+            u64::from(all),
+            u64::from(positive),
             SPLIT_STOP_MIN_DECODES << 16,
         )
     }
