@@ -283,6 +283,21 @@ impl Kernel {
         Trace::from_bits(lo)
     }
 
+    /// `log2` (Q16.16) of how much more drive than [`Kernel::min_burst_drive`] a burst from
+    /// rest needs for a second spike: `(delta + e^(-1 - delta)) log2 e` with `delta = t_ref /
+    /// tau` (the first spike's `r` must reach `1 + delta`: the burst orbit of `unit::orbit`).
+    /// 0.535 at the defaults: a drive 1.45 times the smallest. For equal TRG and membrane time
+    /// constants (the burst engine's condition).
+    pub fn second_spike_log2_q16(&self) -> i32 {
+        let p = &self.params;
+        let delta_q32 = (u64::from(p.t_ref_us) << 32) / u64::from(p.tau_trg_us.max(1));
+        let e_delta_q31 = u128::from(self.exp_trg.decay_bits(p.t_ref_us));
+        let ln_q32 = u128::from(delta_q32) + ((INV_E_Q32 * e_delta_q31) >> 31);
+        // log2 e in Q32.
+        const LOG2E_Q32: u128 = 6_196_328_019;
+        i32::try_from((ln_q32 * LOG2E_Q32) >> 48).unwrap_or(i32::MAX)
+    }
+
     /// Whether the unit, left alone, will spike again (it is in a burst).
     pub fn will_spike(&self, unit: &UnitState) -> bool {
         if unit.refractory_us > 0 {
@@ -1473,6 +1488,39 @@ mod burst_tests {
             assert!(!whole.pending());
             assert_eq!(&all[..n_all], &got[..n_got]);
         }
+    }
+
+    #[test]
+    fn a_second_spike_needs_the_drive_its_closed_form_says() {
+        let k = Kernel::DEFAULT;
+        // Spikes of a burst from rest after an input whose FAC trace is `bits` (WideTrace).
+        let spikes = |bits: u32| {
+            let mut u = BurstUnit::IDLE;
+            k.burst_input(&mut u, 1000, WideTrace(bits));
+            k.burst_emit(&mut u, fine(2_000_000), |_| {})
+        };
+        // The smallest trace (hence drive) that gives at least `n` spikes.
+        let least = |n: u32| {
+            let (mut lo, mut hi) = (1u32, 1 << 26);
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if spikes(mid) >= n {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            lo
+        };
+        let (one, two) = (least(1), least(2));
+        assert!(spikes(two - 1) == 1 && spikes(one - 1) == 0);
+        let measured = (f64::from(two) / f64::from(one)).log2();
+        let delta = 100.0 / 20_000.0;
+        let closed = (delta + (-1.0f64 - delta).exp()) * core::f64::consts::LOG2_E;
+        let got = f64::from(k.second_spike_log2_q16()) / 65_536.0;
+        assert!((got - closed).abs() < 1e-4, "{got} vs {closed}");
+        // The trace's resolution (2^-24 of ~0.06) and the burst tables' rounding.
+        assert!((measured - closed).abs() < 2e-3, "{measured} vs {closed}");
     }
 
     #[test]
