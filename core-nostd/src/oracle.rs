@@ -1007,6 +1007,10 @@ struct SpikePopulation {
     decodes: std::vec::Vec<[(Option<f64>, bool); 2]>,
     /// Cells with a decode waiting, in order.
     waiting: std::collections::VecDeque<u32>,
+    /// Cells with a unit whose burst from rest has shown one spike, in the order they came
+    /// (each once: `lone_listed`), as the fixed readout's queue.
+    lone: std::collections::VecDeque<u32>,
+    lone_listed: std::vec::Vec<bool>,
     /// The slow units: the longest crossing (s) the paper's units time at a pixel without a
     /// recent onset; shorter crossings, and decodes at a pixel whose previous onset came
     /// within the busy window, are theirs. `None` for the paper's units.
@@ -1296,6 +1300,8 @@ impl SpikePopulation {
             onsets: std::vec![None; n],
             decodes: std::vec![[(None, false); 2]; n],
             waiting: std::collections::VecDeque::new(),
+            lone: std::collections::VecDeque::new(),
+            lone_listed: std::vec![false; n],
             fast_reach_s: None,
             stride_before: stride,
             stride_since: f64::NEG_INFINITY,
@@ -1415,6 +1421,35 @@ impl SpikePopulation {
 
     /// Decides, at `now`, what waits for a twin that has answered or can no longer answer.
     fn settle<L: crate::layout::Layout>(&mut self, target: &mut SpikeTarget<'_, L>, now: f64) {
+        let wait = self.p.tau_trg + self.p.t_ref;
+        while let Some(&c) = self.lone.front() {
+            // Which of its units wait, and which of those have waited long enough.
+            let (mut waiting, mut due) = (false, [None; 2]);
+            for (u, slot) in due.iter_mut().enumerate() {
+                if let Some(&SpikeTrack::Rest { t1 }) = self.tracks.get(2 * c as usize + u) {
+                    if now - t1 > wait {
+                        *slot = Some(t1);
+                    } else {
+                        waiting = true;
+                    }
+                }
+            }
+            if due == [None; 2] && waiting {
+                break;
+            }
+            self.lone.pop_front();
+            if let Some(l) = self.lone_listed.get_mut(c as usize) {
+                *l = false;
+            }
+            for (u, t1) in due.into_iter().enumerate() {
+                if let Some(t1) = t1 {
+                    self.lone(target, c as usize, u, t1);
+                }
+            }
+            if waiting {
+                self.list_lone(c);
+            }
+        }
         for _ in 0..self.waiting.len() {
             let Some(c) = self.waiting.pop_front() else {
                 break;
@@ -1496,9 +1531,80 @@ impl SpikePopulation {
         if let Some(tr) = self.tracks.get_mut(id as usize) {
             *tr = next;
         }
+        if matches!(next, SpikeTrack::Rest { .. }) {
+            self.list_lone(id / 2);
+        }
         if let Some((t_trg, d)) = result {
             self.decoded(target, id as usize / 2, id as usize % 2, t_trg, d);
         }
+    }
+
+    /// Appends `cell` to the lone spikes' queue unless it is in it.
+    fn list_lone(&mut self, cell: u32) {
+        if let Some(l) = self.lone_listed.get_mut(cell as usize).filter(|l| !**l) {
+            *l = true;
+            self.lone.push_back(cell);
+        }
+    }
+
+    /// The lone spike at `t1` of unit `u` of `cell`, no second one having followed (the fixed
+    /// readout's `Decoding::lone`), if the unit is still where it left it: at the pixel's last
+    /// onset this unit did not decode, or else the other network's, when it came within a
+    /// clean charge before the spike, with the drive its latency gives; else at the middle of
+    /// the one-spike range's drives (in logarithm), at that drive's latency.
+    fn lone<L: crate::layout::Layout>(
+        &mut self,
+        target: &mut SpikeTarget<'_, L>,
+        cell: usize,
+        u: usize,
+        t1: f64,
+    ) {
+        let p = self.p;
+        let id = 2 * cell + u;
+        match self.tracks.get_mut(id) {
+            Some(tr) if matches!(*tr, SpikeTrack::Rest { t1: t } if t == t1) => {
+                *tr = SpikeTrack::Idle;
+            }
+            _ => return,
+        }
+        let undecoded = self
+            .decodes
+            .get(cell)
+            .and_then(|d| d.get(u))
+            .is_some_and(|(d, _)| d.is_none());
+        let in_range = |t0: f64| (1.0..=p.tau_trg).contains(&(t1 - t0));
+        let own = self
+            .onsets
+            .get(cell)
+            .copied()
+            .flatten()
+            .map(|(t0, _, _)| t0)
+            .filter(|&t0| undecoded && in_range(t0));
+        let peer = target
+            .peer
+            .as_ref()
+            .and_then(|v| v.onsets.get(cell).copied().flatten())
+            .map(|(t0, _, _)| t0)
+            .filter(|&t0| in_range(t0));
+        let (t_trg, d) = match own.or(peer) {
+            Some(t0) => (t0, self.x_of(t1 - t0)),
+            None => {
+                let delta = p.t_ref / p.tau_trg;
+                let d = self.min_drive() * ((delta + (-1.0 - delta).exp()) / 2.0).exp();
+                // The latency from rest with that drive: `x(lat) = d`, `x` falling up to tau.
+                let (mut lo, mut hi) = (0.0, p.tau_trg);
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if self.x_of(mid) > d {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                (t1 - hi, d)
+            }
+        };
+        self.decoded(target, cell, u, t_trg, d);
     }
 
     /// A decoded TRG event at `t_trg` with drive `d` of unit `u` of `cell`.

@@ -227,17 +227,18 @@ fn readouts<'a>(f: &'a Figures, s: &'a Figures) -> [(&'static str, &'a Figures);
 #[test]
 fn car_forward_motion() {
     let (f, s) = scene(Regime::Car, 3, 3.0);
-    check_turning("car", &f, &s, (0.97, 0.1, 0.1), 1.35);
+    // 1.10 since the spike readout reads lone spikes (1.35 allowed before).
+    check_turning("car", &f, &s, (0.97, 0.1, 0.1), 1.25);
 }
 
 #[test]
 fn drone_forward_flight() {
     let (f, s) = scene(Regime::Drone, 3, 2.5);
-    // The issue asks for 1.25; 1.20 before the aperture gate, which improves both readouts
-    // here (RMSE / peak 10.6 → 9.3 % and 12.7 → 12.1 %), the calibrated one more: it reads
-    // the vertical neighbours' traces, the spike readout knows their onsets only where their
-    // units burst (README: "Pitch and roll").
-    check_turning("drone", &f, &s, (0.95, 0.17, 0.1), 1.35);
+    // The issue asks for 1.25: 1.15 since the spike readout reads lone spikes (1.20 before the
+    // aperture gate, which improves both readouts here, the calibrated one more: it reads the
+    // vertical neighbours' traces, the spike readout knows their onsets only where their units
+    // burst, README: "Pitch and roll"; 1.35 was allowed then).
+    check_turning("drone", &f, &s, (0.95, 0.17, 0.1), 1.25);
 }
 
 /// Drone seed 304 (held out) turns at 1.8 rad/s over its last 0.8 s while it pitches and rolls
@@ -252,7 +253,8 @@ fn drone_forward_flight() {
 /// Since a new start needs most of its latest decodes above the principal row
 /// (`Field::start_against`) the calibrated readout no longer answers its first reading at 0.06
 /// s, where the drone pitches and barely yaws (4.3 → 4.2 %); the spike readout's 5.3 % is
-/// unchanged, its ratio 1.25 → 1.27: held to 1.3, and the spike readout to 6 % of peak itself.
+/// unchanged, its ratio 1.25 → 1.27: held to 1.3, and the spike readout to 6 % of peak itself
+/// (1.25 since it reads lone spikes).
 #[test]
 fn a_fast_turn_while_pitching_and_rolling() {
     let (f, s) = scene(Regime::Drone, 304, 4.0);
@@ -633,7 +635,9 @@ fn a_hover_with_background_activity() {
 /// (`Field::start_against`): the calibrated readout 23.9 → 22.3 %, the spike readout 29.4 →
 /// 28.7 %, which still says "no evidence" through much of the turn at 2.6-3.0 s, where a person
 /// walking the other way in one right column band outweighs a quarter of the field: their
-/// ratio 1.23 → 1.29, held to 1.3, and the spike readout to 30 % of peak itself.
+/// ratio 1.23 → 1.29. A decode from spikes needed a burst's first interval, two spikes, and
+/// near the paper's units' floor most of the turn's slowest decodes are one-spike bursts: the
+/// spike readout now reads lone spikes too (`readout::spikes`, 28.7 → 24.6 %, ratio 1.10).
 #[test]
 fn people_walking_past_a_drone_that_turns_under_a_skyline() {
     let (f, s) = scene_with(Regime::Hover, 631, 4.0, |cfg| cfg.objects = 2);
@@ -642,9 +646,8 @@ fn people_walking_past_a_drone_that_turns_under_a_skyline() {
         &f,
         &s,
         (0.93, 0.29, 0.1),
-        1.3,
+        1.25,
     );
-    check_spike_rmse(&s, 0.3);
 }
 
 /// A hovering drone (seed 501, rendered after the other rules) that stops turning at 1.6 s while three people walk

@@ -20,6 +20,20 @@
 //!   interval `M` pins the event's time `a`: with `K = x' e^((M + t_ref)/tau) - y`,
 //!   `M - a = (e^(M/tau)/c - y M) / K` and `D = K e^(-a/tau)`. The same holds after a burst has
 //!   ended (`y` below the spiking level), for `M` up to 65 ms.
+//! - **A lone spike.** A burst from rest has a second spike when its drive is at least
+//!   `e^(delta + e^(-1 - delta))` (1.45) times the smallest that bursts (`delta = t_ref/tau`:
+//!   its first spike's place on the burst orbit must leave a charge that reaches threshold;
+//!   [`Kernel::second_spike_log2_q16`]), and the second spike comes within `tau + t_ref` of
+//!   the first. A first spike with nothing after it for that long therefore says that the drive
+//!   lay in that range ([`BurstDecoder::decode_lone`]): for the paper's units at a pixel with
+//!   one onset, a crossing of 47-54 ms. Where the TRG event's time is known (an onset of the
+//!   pixel that this unit did not decode, decoded by its twin or by the other network of the
+//!   paper's units, within a clean charge before the spike), the latency gives the drive;
+//!   else it is read as the middle of the range (in logarithm: the crossing time good to
+//!   ±7 %) with that drive's latency. Without them the spike readout lost the slowest
+//!   decodes the calibrated readout reads (which decodes a one-spike burst's drive): near the
+//!   paper's units' floor a hover's turn read from a third of them (held-out hover seed 631:
+//!   28.7 % RMSE / peak against the calibrated readout's 22.3 %; 24.6 % with them).
 //!
 //! Spike times are whole µs, so a decoded drive is good to about 0.1 % (a 2-spike burst from
 //! rest: 0.15 %; test `spike_readout`). A drive is then an edge's travel time, as in the
@@ -81,7 +95,8 @@
 //!
 //! Causal: the network hands a spike at `t` over by the first output time at or after `t`,
 //! and an output at `T` uses the decodes of spikes up to `T`. A decode needs the burst's
-//! second spike (1-15 ms after the TRG event). Warm-up: TRG events in the first
+//! second spike (1-15 ms after the TRG event), or, for a lone spike, `tau + t_ref` (20.1
+//! ms) without one. Warm-up: TRG events in the first
 //! [`WARMUP_US`] are not decoded (every pixel's first event looks like an onset), and the
 //! outputs say "no evidence" for as long, as the calibrated readout's do; after it the field's
 //! support rules decide when the first decodes answer. (Outputs held back until `WARMUP_US +
@@ -125,18 +140,20 @@
 //! recording 11 148 → 11 144 decodes).
 //!
 //! # State
-//! One [`SpikeCell`] per pixel of the layout and network (three networks: 84 bytes per pixel),
-//! from the caller (28 bytes each, on top of the spiking networks' own state): each unit's
+//! One [`SpikeCell`] per pixel of the layout and network (three networks: 96 bytes per pixel),
+//! from the caller (32 bytes each, on top of the spiking networks' own state): each unit's
 //! burst in progress (where its membrane last started charging, 24 bits of µs; what the last
 //! interval said; 8 bytes), the pixel's last decoded onset and own trace, each unit's decoded
-//! drive for it, and its link in the queue of decodes waiting for a twin's answer. Nothing is
+//! drive for it, and its links in the queue of decodes waiting for a twin's answer and in the
+//! queue of bursts waiting for their second spike. Nothing is
 //! ever full and no spike goes untracked: a pool of bursts in progress would not be smaller,
 //! as up to 45 % of the pixels burst at once on the shared sequences (a drone's fast turn), and
 //! a pool that overflows drops decodes unevenly (a pixel that keeps bursting keeps its slot). A
 //! sweep visits every cell every 4 s and forgets what is older than `M` (65 ms) or the
 //! own-trace memory, so that no stored time is read across its wrap. Decodes waiting for a
 //! twin's answer wait in a queue linked through the cells (each cell at most once), so none is
-//! ever decided early for want of room.
+//! ever decided early for want of room; so do the bursts from rest waiting for their second
+//! spike.
 
 use fixed::types::I16F16;
 
@@ -317,7 +334,8 @@ impl Track {
 
 /// What the spike readout keeps of one pixel: its two units' bursts in progress, its last
 /// decoded onset with its own trace, each unit's decoded drive for that onset, and its link in
-/// the queue of decodes waiting for a twin's answer. 28 bytes.
+/// the queues of decodes waiting for a twin's answer and of bursts waiting for their second
+/// spike. 32 bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C)]
 pub struct SpikeCell {
@@ -334,6 +352,9 @@ pub struct SpikeCell {
     /// The next cell in the population's queue of decodes waiting for a twin's answer
     /// ([`QUEUE_END`]: the last; [`NOT_QUEUED`]: this cell is not in it).
     next: u32,
+    /// The next cell in the population's queue of bursts from rest waiting for their second
+    /// spike (the same markers).
+    lone_next: u32,
 }
 
 impl SpikeCell {
@@ -343,6 +364,7 @@ impl SpikeCell {
         onset: 0,
         l2d: [i16::MIN; 2],
         next: NOT_QUEUED,
+        lone_next: NOT_QUEUED,
     };
 
     /// Bytes of one cell's state.
@@ -474,6 +496,12 @@ pub struct BurstDecoder {
     l2_tref: i32,
     /// `log2` of the smallest drive that makes a burst from rest (Q16.16).
     l2_min_drive: i32,
+    /// `log2` of the drive a lone spike is read with (Q16.16): the middle of the one-spike
+    /// range, [`Kernel::second_spike_log2_q16`] wide above `l2_min_drive`.
+    l2_lone_drive: i32,
+    /// The latency (µs) of a spike from rest with that drive: how long before a lone spike its
+    /// TRG event is taken to have come, when no decoded onset of the pixel says when.
+    lone_latency_us: u32,
 }
 
 impl BurstDecoder {
@@ -490,9 +518,54 @@ impl BurstDecoder {
                 .saturating_sub(LOG2_1E6),
             l2_tref: 0,
             l2_min_drive: log2_q16(u64::from(kernel.min_burst_drive().to_bits()), 27),
+            l2_lone_drive: 0,
+            lone_latency_us: 0,
         };
         d.l2_tref = d.l2_time(p.t_ref_us);
+        d.l2_lone_drive = d
+            .l2_min_drive
+            .saturating_add(kernel.second_spike_log2_q16() / 2);
+        // From rest the drive falls with the latency up to `tau` (`x(L)`): the first latency
+        // whose drive is at most the lone spike's.
+        let (mut lo, mut hi) = (1u32, tau);
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if d.l2x(mid) <= d.l2_lone_drive {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        d.lone_latency_us = lo;
         d
+    }
+
+    /// A unit's burst from rest whose first spike came at `t1` and no second one within
+    /// `tau + t_ref` after it (it would have by then: a clean charge peaks at `tau`) had one
+    /// spike: its drive lay between the smallest that bursts and
+    /// [`Kernel::second_spike_log2_q16`] more (the paper's units: an edge's crossing 47-54 ms
+    /// long at a pixel with one onset, past what a burst's first interval times). Where the
+    /// pixel's last decoded onset came within a clean charge before `t1` (`t_onset`: its twin
+    /// decoded it), that was the TRG event and the latency gives the drive; else the drive is
+    /// taken at the middle of the range's logarithms (a crossing time good to ±7 %) and the
+    /// event at that drive's latency.
+    pub fn decode_lone(&self, t1: u32, t_onset: Option<u32>) -> Decoded {
+        let exact = t_onset.and_then(|t0| Some((t0, self.l2x(self.lone_latency(t1, t0)?))));
+        let (t_us, log2_drive) =
+            exact.unwrap_or((t1.wrapping_sub(self.lone_latency_us), self.l2_lone_drive));
+        Decoded {
+            t_us,
+            log2_drive,
+            from_rest: true,
+        }
+    }
+
+    /// The latency (µs) of a spike at `t1` after a TRG event at `t0`, if a spike from rest
+    /// can come that late (1 µs to `tau`).
+    fn lone_latency(&self, t1: u32, t0: u32) -> Option<u32> {
+        EventTime::from_us(t1)
+            .since(EventTime::from_us(t0))
+            .filter(|lat| (1..=self.tau_us).contains(lat))
     }
 
     /// `log2 e^(us/tau)` (Q16.16) of a whole number of µs.
@@ -733,6 +806,35 @@ impl BurstDecoder {
     }
 }
 
+/// Appends `cell` to the queue `(first, last)` (`None`: empty) linked through the field of
+/// [`SpikeCell`] that `link` picks, unless it is in it (its link is not [`NOT_QUEUED`]).
+/// Returns whether it was appended.
+#[inline]
+fn append(
+    cells: &mut [SpikeCell],
+    queue: &mut Option<(u32, u32)>,
+    cell: u32,
+    link: impl Fn(&mut SpikeCell) -> &mut u32,
+) -> bool {
+    let Some(c) = cells.get_mut(cell as usize) else {
+        return false;
+    };
+    if *link(c) != NOT_QUEUED {
+        return false;
+    }
+    *link(c) = QUEUE_END;
+    *queue = match *queue {
+        None => Some((cell, cell)),
+        Some((head, tail)) => {
+            if let Some(t) = cells.get_mut(tail as usize) {
+                *link(t) = cell;
+            }
+            Some((head, cell))
+        }
+    };
+    true
+}
+
 /// One population's decoding: its units' kernel (the FAC time constant a drive is read
 /// with), its per-pixel memory (borrowed) and the decodes waiting for a twin's answer.
 struct Decoding<'a> {
@@ -754,6 +856,12 @@ struct Decoding<'a> {
     /// empty), length.
     queue: Option<(u32, u32)>,
     queued: usize,
+    /// The cells with a unit whose burst from rest has shown one spike, waiting for its second,
+    /// in the order their spikes came, linked through [`SpikeCell::lone_next`]: first and last
+    /// cell (`None`: empty). A unit waits `tau` after the charge that follows its spike
+    /// starts (a clean charge peaks by then), then its spike is read as a lone one if it has
+    /// shown nothing since ([`Decoding::lone`]): one visit per burst, not one per output.
+    lone_queue: Option<(u32, u32)>,
 }
 
 /// Where the paper's units time an edge, the slow units' decode of it is not read: derived from
@@ -889,29 +997,15 @@ impl<'a> Decoding<'a> {
             cells,
             queue: None,
             queued: 0,
+            lone_queue: None,
         }
     }
 
     /// Appends `cell` to the waiting queue unless it is in it.
     fn enqueue(&mut self, cell: usize) {
-        let Some(c) = self.cells.get_mut(cell) else {
-            return;
-        };
-        if c.next != NOT_QUEUED {
-            return;
+        if append(self.cells, &mut self.queue, cell as u32, |c| &mut c.next) {
+            self.queued += 1;
         }
-        c.next = QUEUE_END;
-        let cell = cell as u32;
-        self.queue = match self.queue {
-            None => Some((cell, cell)),
-            Some((head, tail)) => {
-                if let Some(t) = self.cells.get_mut(tail as usize) {
-                    t.next = cell;
-                }
-                Some((head, cell))
-            }
-        };
-        self.queued += 1;
     }
 
     /// Takes `cell` off the waiting queue, `prev` being the cell before it (`None`: it is
@@ -961,14 +1055,127 @@ impl<'a> Decoding<'a> {
             target.now = t_us;
         }
         let Self { decoder, cells, .. } = self;
-        let Some(d) = cells
+        let Some(tr) = cells
             .get_mut(cell as usize)
             .and_then(|c| c.units.get_mut(dir.slot()))
-            .and_then(|tr| decoder.spike(tr, t_us, true))
         else {
             return;
         };
-        self.decoded(target, cell as usize, dir, d, other);
+        let decoded = decoder.spike(tr, t_us, true);
+        if tr.state() == state::REST {
+            // A burst's first spike: it waits for its second (`Decoding::lone`).
+            self.enqueue_lone(cell);
+        }
+        if let Some(d) = decoded {
+            self.decoded(target, cell as usize, dir, d, other);
+        }
+    }
+
+    /// Reads the lone spikes of the bursts from rest queued before `now` - `tau` whose unit has
+    /// shown nothing since ([`BurstDecoder::decode_lone`]).
+    fn lone_spikes<L: Layout>(
+        &mut self,
+        target: &mut Target<L>,
+        now: u32,
+        other: Option<&[SpikeCell]>,
+    ) {
+        let tau = self.decoder.tau_us;
+        while let Some((head, tail)) = self.lone_queue {
+            let Some(c) = self.cells.get_mut(head as usize) else {
+                break;
+            };
+            // Which of its units wait, and which of those have waited long enough.
+            let (mut waiting, mut due) = ([false; 2], [None; 2]);
+            for (u, tr) in c.units.iter().enumerate() {
+                if tr.state() != state::REST {
+                    continue;
+                }
+                match since24(now, tr.s_ref()) {
+                    Some(d) if d > tau => {
+                        if let Some(x) = due.get_mut(u) {
+                            *x = Some(tr.s_ref());
+                        }
+                    }
+                    _ => {
+                        if let Some(x) = waiting.get_mut(u) {
+                            *x = true;
+                        }
+                    }
+                }
+            }
+            if due == [None; 2] && waiting != [false; 2] {
+                // The oldest still waits: so do those after it.
+                break;
+            }
+            let next = c.lone_next;
+            c.lone_next = NOT_QUEUED;
+            self.lone_queue = (next != QUEUE_END).then_some((next, tail));
+            for (u, s_ref) in due.into_iter().enumerate() {
+                if let Some(s_ref) = s_ref {
+                    self.lone(target, head as usize, u, s_ref, other);
+                }
+            }
+            if waiting != [false; 2] {
+                self.enqueue_lone(head);
+            }
+        }
+    }
+
+    /// Appends `cell` to the lone spikes' queue unless it is in it.
+    fn enqueue_lone(&mut self, cell: u32) {
+        append(self.cells, &mut self.lone_queue, cell, |c| &mut c.lone_next);
+    }
+
+    /// Decodes the lone spike of unit `u` at `cell` whose charge after it started at `s_ref`,
+    /// if the unit is still where that spike left it. As the TRG event's time it takes the
+    /// pixel's last onset that this unit did not decode, as decoded here or by the other
+    /// network of the paper's units (`other`: the same pixel's events), when it came within a
+    /// clean charge before the spike.
+    fn lone<L: Layout>(
+        &mut self,
+        target: &mut Target<L>,
+        cell: usize,
+        u: usize,
+        s_ref: u32,
+        other: Option<&[SpikeCell]>,
+    ) {
+        let t_ref = self.decoder.t_ref_us;
+        let Some(c) = self.cells.get_mut(cell) else {
+            return;
+        };
+        let undecoded = c.l2d.get(u).is_some_and(|&l| l == i16::MIN);
+        let own = c.t_onset().filter(|_| undecoded);
+        let Some(tr) = c
+            .units
+            .get_mut(u)
+            .filter(|tr| tr.state() == state::REST && tr.s_ref() == s_ref)
+        else {
+            return;
+        };
+        // Its next spike starts afresh.
+        tr.set(state::IDLE, 0, 0);
+        let t1 = tr.last_spike(target.now, t_ref);
+        let peer = other.and_then(|o| o.get(cell)).and_then(SpikeCell::t_onset);
+        let t_onset = own
+            .filter(|&t0| self.decoder.lone_latency(t1, t0).is_some())
+            .or(peer);
+        let d = self.decoder.decode_lone(t1, t_onset);
+        // At the onset its twin decoded (with two spikes or more, a drive at least this one's
+        // range) it would not be read: the twin's drive is not half of it or less. (Skipped:
+        // the same output, less work.)
+        let twin_l2d = own
+            .filter(|&t0| t0 == d.t_us)
+            .and_then(|_| c.l2d.get(1 - u))
+            .filter(|&&l| l != i16::MIN && !c.waits(1 - u))
+            .map(|&l| l2_unpack(l));
+        let needed = d.log2_drive.saturating_sub((DOMINANCE_LOG2 << 16) as i32);
+        if twin_l2d.is_some_and(|l| l > needed) {
+            target.ambiguous += 1;
+            return;
+        }
+        if let Some(&dir) = Dir::BOTH.get(u) {
+            self.decoded(target, cell, dir, d, other);
+        }
     }
 
     /// The own trace just after an onset at `t` of a pixel whose last onset was `(t0, own)`.
@@ -1275,6 +1482,8 @@ impl<'a> Decoding<'a> {
         t_us: u32,
         other: Option<&[SpikeCell]>,
     ) {
+        // Lone spikes first: their decodes wait for the twin too (decided in this walk).
+        self.lone_spikes(target, t_us, other);
         // The queue is walked in place: the decided cells leave it, the others keep their
         // order (deciding never adds to it). At most its length in steps.
         let mut prev = None;
