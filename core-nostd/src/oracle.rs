@@ -1009,8 +1009,11 @@ struct SpikePopulation {
     waiting: std::collections::VecDeque<u32>,
     /// Cells with a unit whose burst from rest has shown one spike, in the order they came
     /// (each once: `lone_listed`), as the fixed readout's queue.
-    lone: std::collections::VecDeque<u32>,
+    lone_queue: std::collections::VecDeque<u32>,
     lone_listed: std::vec::Vec<bool>,
+    /// A lone spike's drive and latency (µs) when no decoded onset says when its TRG event
+    /// came: the middle of the one-spike range's drives (in logarithm), `x(latency)` = drive.
+    lone_guess: (f64, f64),
     /// The slow units: the longest crossing (s) the paper's units time at a pixel without a
     /// recent onset; shorter crossings, and decodes at a pixel whose previous onset came
     /// within the busy window, are theirs. `None` for the paper's units.
@@ -1286,7 +1289,7 @@ impl<L: crate::layout::Layout> OracleSpikeYaw<L> {
 
 impl SpikePopulation {
     fn new(p: OracleParams, n: usize, gap: f64, stride: i32) -> Self {
-        Self {
+        let mut pop = Self {
             p,
             stride,
             near: false,
@@ -1300,12 +1303,27 @@ impl SpikePopulation {
             onsets: std::vec![None; n],
             decodes: std::vec![[(None, false); 2]; n],
             waiting: std::collections::VecDeque::new(),
-            lone: std::collections::VecDeque::new(),
+            lone_queue: std::collections::VecDeque::new(),
             lone_listed: std::vec![false; n],
+            lone_guess: (0.0, 0.0),
             fast_reach_s: None,
             stride_before: stride,
             stride_since: f64::NEG_INFINITY,
+        };
+        let delta = p.t_ref / p.tau_trg;
+        let drive = pop.min_drive() * ((delta + (-1.0 - delta).exp()) / 2.0).exp();
+        // `x` falls with the charge's length up to tau.
+        let (mut lo, mut hi) = (0.0, p.tau_trg);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if pop.x_of(mid) > drive {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
         }
+        pop.lone_guess = (drive, hi);
+        pop
     }
 
     /// The FAC pixel distance (px) a TRG event at `t` (µs) was timed over.
@@ -1422,9 +1440,9 @@ impl SpikePopulation {
     /// Decides, at `now`, what waits for a twin that has answered or can no longer answer.
     fn settle<L: crate::layout::Layout>(&mut self, target: &mut SpikeTarget<'_, L>, now: f64) {
         let wait = self.p.tau_trg + self.p.t_ref;
-        while let Some(&c) = self.lone.front() {
-            // Which of its units wait, and which of those have waited long enough.
-            let (mut waiting, mut due) = (false, [None; 2]);
+        while let Some(&c) = self.lone_queue.front() {
+            // Which of its units have waited long enough, and whether another still waits.
+            let (mut due, mut waiting) = ([None; 2], false);
             for (u, slot) in due.iter_mut().enumerate() {
                 if let Some(&SpikeTrack::Rest { t1 }) = self.tracks.get(2 * c as usize + u) {
                     if now - t1 > wait {
@@ -1437,7 +1455,7 @@ impl SpikePopulation {
             if due == [None; 2] && waiting {
                 break;
             }
-            self.lone.pop_front();
+            self.lone_queue.pop_front();
             if let Some(l) = self.lone_listed.get_mut(c as usize) {
                 *l = false;
             }
@@ -1543,15 +1561,14 @@ impl SpikePopulation {
     fn list_lone(&mut self, cell: u32) {
         if let Some(l) = self.lone_listed.get_mut(cell as usize).filter(|l| !**l) {
             *l = true;
-            self.lone.push_back(cell);
+            self.lone_queue.push_back(cell);
         }
     }
 
-    /// The lone spike at `t1` of unit `u` of `cell`, no second one having followed (the fixed
-    /// readout's `Decoding::lone`), if the unit is still where it left it: at the pixel's last
-    /// onset this unit did not decode, or else the other network's, when it came within a
-    /// clean charge before the spike, with the drive its latency gives; else at the middle of
-    /// the one-spike range's drives (in logarithm), at that drive's latency.
+    /// The lone spike at `t1` of unit `u` of `cell` (in `Rest`, waited long enough; the fixed
+    /// readout's `Decoding::lone`): at the pixel's last onset this unit did not decode, or else
+    /// the other network's, when it came within a clean charge before the spike, with the
+    /// drive its latency gives; else with `lone_guess`.
     fn lone<L: crate::layout::Layout>(
         &mut self,
         target: &mut SpikeTarget<'_, L>,
@@ -1560,12 +1577,8 @@ impl SpikePopulation {
         t1: f64,
     ) {
         let p = self.p;
-        let id = 2 * cell + u;
-        match self.tracks.get_mut(id) {
-            Some(tr) if matches!(*tr, SpikeTrack::Rest { t1: t } if t == t1) => {
-                *tr = SpikeTrack::Idle;
-            }
-            _ => return,
+        if let Some(tr) = self.tracks.get_mut(2 * cell + u) {
+            *tr = SpikeTrack::Idle;
         }
         let undecoded = self
             .decodes
@@ -1589,19 +1602,8 @@ impl SpikePopulation {
         let (t_trg, d) = match own.or(peer) {
             Some(t0) => (t0, self.x_of(t1 - t0)),
             None => {
-                let delta = p.t_ref / p.tau_trg;
-                let d = self.min_drive() * ((delta + (-1.0 - delta).exp()) / 2.0).exp();
-                // The latency from rest with that drive: `x(lat) = d`, `x` falling up to tau.
-                let (mut lo, mut hi) = (0.0, p.tau_trg);
-                for _ in 0..60 {
-                    let mid = 0.5 * (lo + hi);
-                    if self.x_of(mid) > d {
-                        lo = mid;
-                    } else {
-                        hi = mid;
-                    }
-                }
-                (t1 - hi, d)
+                let (d, latency) = self.lone_guess;
+                (t1 - latency, d)
             }
         };
         self.decoded(target, cell, u, t_trg, d);

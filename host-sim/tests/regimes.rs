@@ -254,7 +254,7 @@ fn drone_forward_flight() {
 /// (`Field::start_against`) the calibrated readout no longer answers its first reading at 0.06
 /// s, where the drone pitches and barely yaws (4.3 → 4.2 %); the spike readout's 5.3 % is
 /// unchanged, its ratio 1.25 → 1.27: held to 1.3, and the spike readout to 6 % of peak itself
-/// (1.25 since it reads lone spikes).
+/// (1.26 since it reads lone spikes).
 #[test]
 fn a_fast_turn_while_pitching_and_rolling() {
     let (f, s) = scene(Regime::Drone, 304, 4.0);

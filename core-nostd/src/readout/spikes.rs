@@ -545,12 +545,17 @@ impl BurstDecoder {
     /// spike: its drive lay between the smallest that bursts and
     /// [`Kernel::second_spike_log2_q16`] more (the paper's units: an edge's crossing 47-54 ms
     /// long at a pixel with one onset, past what a burst's first interval times). Where the
-    /// pixel's last decoded onset came within a clean charge before `t1` (`t_onset`: its twin
-    /// decoded it), that was the TRG event and the latency gives the drive; else the drive is
-    /// taken at the middle of the range's logarithms (a crossing time good to ±7 %) and the
+    /// first of the pixel's decoded onsets `onsets` that came within a clean charge before `t1`
+    /// (1 µs to `tau`) was the TRG event, and the latency gives the drive; with none, the drive
+    /// is taken at the middle of the range's logarithms (a crossing time good to ±7 %) and the
     /// event at that drive's latency.
-    pub fn decode_lone(&self, t1: u32, t_onset: Option<u32>) -> Decoded {
-        let exact = t_onset.and_then(|t0| Some((t0, self.l2x(self.lone_latency(t1, t0)?))));
+    pub fn decode_lone(&self, t1: u32, onsets: impl IntoIterator<Item = u32>) -> Decoded {
+        let exact = onsets.into_iter().find_map(|t0| {
+            let lat = EventTime::from_us(t1)
+                .since(EventTime::from_us(t0))
+                .filter(|lat| (1..=self.tau_us).contains(lat))?;
+            Some((t0, self.l2x(lat)))
+        });
         let (t_us, log2_drive) =
             exact.unwrap_or((t1.wrapping_sub(self.lone_latency_us), self.l2_lone_drive));
         Decoded {
@@ -558,14 +563,6 @@ impl BurstDecoder {
             log2_drive,
             from_rest: true,
         }
-    }
-
-    /// The latency (µs) of a spike at `t1` after a TRG event at `t0`, if a spike from rest
-    /// can come that late (1 µs to `tau`).
-    fn lone_latency(&self, t1: u32, t0: u32) -> Option<u32> {
-        EventTime::from_us(t1)
-            .since(EventTime::from_us(t0))
-            .filter(|lat| (1..=self.tau_us).contains(lat))
     }
 
     /// `log2 e^(us/tau)` (Q16.16) of a whole number of µs.
@@ -1084,38 +1081,28 @@ impl<'a> Decoding<'a> {
             let Some(c) = self.cells.get_mut(head as usize) else {
                 break;
             };
-            // Which of its units wait, and which of those have waited long enough.
-            let (mut waiting, mut due) = ([false; 2], [None; 2]);
-            for (u, tr) in c.units.iter().enumerate() {
-                if tr.state() != state::REST {
-                    continue;
-                }
-                match since24(now, tr.s_ref()) {
-                    Some(d) if d > tau => {
-                        if let Some(x) = due.get_mut(u) {
-                            *x = Some(tr.s_ref());
-                        }
-                    }
-                    _ => {
-                        if let Some(x) = waiting.get_mut(u) {
-                            *x = true;
-                        }
+            // Which of its units have waited long enough, and whether another still waits.
+            let (mut due, mut waiting) = ([false; 2], false);
+            for (tr, due) in c.units.iter().zip(due.iter_mut()) {
+                if tr.state() == state::REST {
+                    if since24(now, tr.s_ref()).is_some_and(|d| d > tau) {
+                        *due = true;
+                    } else {
+                        waiting = true;
                     }
                 }
             }
-            if due == [None; 2] && waiting != [false; 2] {
+            if due == [false; 2] && waiting {
                 // The oldest still waits: so do those after it.
                 break;
             }
             let next = c.lone_next;
             c.lone_next = NOT_QUEUED;
             self.lone_queue = (next != QUEUE_END).then_some((next, tail));
-            for (u, s_ref) in due.into_iter().enumerate() {
-                if let Some(s_ref) = s_ref {
-                    self.lone(target, head as usize, u, s_ref, other);
-                }
+            for (u, _) in due.into_iter().enumerate().filter(|&(_, due)| due) {
+                self.lone(target, head as usize, u, other);
             }
-            if waiting != [false; 2] {
+            if waiting {
                 self.enqueue_lone(head);
             }
         }
@@ -1126,17 +1113,15 @@ impl<'a> Decoding<'a> {
         append(self.cells, &mut self.lone_queue, cell, |c| &mut c.lone_next);
     }
 
-    /// Decodes the lone spike of unit `u` at `cell` whose charge after it started at `s_ref`,
-    /// if the unit is still where that spike left it. As the TRG event's time it takes the
-    /// pixel's last onset that this unit did not decode, as decoded here or by the other
-    /// network of the paper's units (`other`: the same pixel's events), when it came within a
-    /// clean charge before the spike.
+    /// Decodes the lone spike of unit `u` at `cell` (in [`state::REST`], waited long enough). As
+    /// the TRG event's time it takes the pixel's last onset that this unit did not decode, as
+    /// decoded here, else as decoded by the other network of the paper's units (`other`: the
+    /// same pixel's events), when it came within a clean charge before the spike.
     fn lone<L: Layout>(
         &mut self,
         target: &mut Target<L>,
         cell: usize,
         u: usize,
-        s_ref: u32,
         other: Option<&[SpikeCell]>,
     ) {
         let t_ref = self.decoder.t_ref_us;
@@ -1145,34 +1130,14 @@ impl<'a> Decoding<'a> {
         };
         let undecoded = c.l2d.get(u).is_some_and(|&l| l == i16::MIN);
         let own = c.t_onset().filter(|_| undecoded);
-        let Some(tr) = c
-            .units
-            .get_mut(u)
-            .filter(|tr| tr.state() == state::REST && tr.s_ref() == s_ref)
-        else {
+        let Some(tr) = c.units.get_mut(u) else {
             return;
         };
+        let t1 = tr.last_spike(target.now, t_ref);
         // Its next spike starts afresh.
         tr.set(state::IDLE, 0, 0);
-        let t1 = tr.last_spike(target.now, t_ref);
         let peer = other.and_then(|o| o.get(cell)).and_then(SpikeCell::t_onset);
-        let t_onset = own
-            .filter(|&t0| self.decoder.lone_latency(t1, t0).is_some())
-            .or(peer);
-        let d = self.decoder.decode_lone(t1, t_onset);
-        // At the onset its twin decoded (with two spikes or more, a drive at least this one's
-        // range) it would not be read: the twin's drive is not half of it or less. (Skipped:
-        // the same output, less work.)
-        let twin_l2d = own
-            .filter(|&t0| t0 == d.t_us)
-            .and_then(|_| c.l2d.get(1 - u))
-            .filter(|&&l| l != i16::MIN && !c.waits(1 - u))
-            .map(|&l| l2_unpack(l));
-        let needed = d.log2_drive.saturating_sub((DOMINANCE_LOG2 << 16) as i32);
-        if twin_l2d.is_some_and(|l| l > needed) {
-            target.ambiguous += 1;
-            return;
-        }
+        let d = self.decoder.decode_lone(t1, own.into_iter().chain(peer));
         if let Some(&dir) = Dir::BOTH.get(u) {
             self.decoded(target, cell, dir, d, other);
         }
