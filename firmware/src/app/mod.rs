@@ -188,6 +188,9 @@ pub struct Stats {
     pub cost_units: u64,
     /// Cost of the input stage's decoding (framing, CRCs, copies), in [`CostMeter`] units.
     pub input_cost_units: u64,
+    /// The meter's cost of reading an empty interval, × 1024 (left out of `cost_units` once
+    /// per event; [`CostMeter::overhead_x1024`]).
+    pub meter_overhead_x1024: u64,
     /// Spikes of the network's units (spiking readouts), over all runs.
     pub spikes: u64,
     /// Unit pool: pairs in it (the last run's), most in use at once, events that found it full.
@@ -220,6 +223,7 @@ pub static STATS: CriticalSectionMutex<Cell<Stats>> = CriticalSectionMutex::new(
     yaw_dropped: 0,
     cost_units: 0,
     input_cost_units: 0,
+    meter_overhead_x1024: 0,
     spikes: 0,
     pool_capacity: 0,
     pool_peak: 0,
@@ -275,16 +279,31 @@ pub trait CostMeter {
         later.wrapping_sub(earlier)
     }
 
-    /// What the meter reads of an empty interval, in units × 1024 (the sum over 1024 of them):
-    /// the cost of reading it, which the processing cost leaves out.
+    /// What the meter reads of an empty interval, in units × 1024 (the mean over many of
+    /// them, × 1024): the cost of reading it, which the processing cost leaves out.
+    ///
+    /// A step of the raw counter can be longer than the interval (QEMU at shift 0: 40
+    /// instructions), and a loop of identical intervals starts each at the same phase of the
+    /// step, so that every one reads the same 0 or 1 step: the mean would be off by up to a
+    /// step. Before each interval a padding of 0..[`CALIBRATION_PAD`] loop turns (coprime
+    /// with the step) moves its start along the step, so that the mean of the reads is the
+    /// interval's length to a fraction of a unit.
     fn overhead_x1024() -> u64 {
         let mut ticks = 0u64;
-        for _ in 0..1024 {
+        for i in 0..CALIBRATION_ROUNDS * 1024 {
+            for _ in 0..i % CALIBRATION_PAD {
+                cortex_m::asm::nop();
+            }
             let a = Self::now();
             core::hint::black_box(());
             let b = Self::now();
             ticks += u64::from(Self::ticks(a, b));
         }
-        ticks * u64::from(Self::units_per_tick())
+        ticks * u64::from(Self::units_per_tick()) / u64::from(CALIBRATION_ROUNDS)
     }
 }
+
+/// Intervals read by [`CostMeter::overhead_x1024`], in units of 1024.
+const CALIBRATION_ROUNDS: u32 = 16;
+/// Largest padding before a calibration interval, in loop turns (a prime).
+const CALIBRATION_PAD: u32 = 61;

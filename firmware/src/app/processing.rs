@@ -94,6 +94,7 @@ pub async fn run<K: YawSink, M: CostMeter>(
     let start = Instant::now();
     let mut idle_tick: u32 = 0;
     let meter_overhead_x1024 = M::overhead_x1024();
+    update_stats(|st| st.meter_overhead_x1024 = meter_overhead_x1024);
     loop {
         // The frame is read in its slot, which is freed (`receive_done`) once it is used.
         let slot = match clock {

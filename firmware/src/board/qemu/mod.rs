@@ -209,14 +209,16 @@ async fn main_task(cfg: Config, mut queue: FrameReceiver) {
     let per_byte_x100 = (s.input_cost_units * 100)
         .checked_div(u64::from(s.bytes))
         .unwrap_or(0);
-    let mut line: heapless::String<640> = heapless::String::new();
+    let overhead_x100 = s.meter_overhead_x1024 * 100 / 1024;
+    let mut line: heapless::String<680> = heapless::String::new();
     let _ = write!(
         line,
         "events={} frames_ok={} frames_bad={} frames_dropped={} instructions_per_event={}\n\
          detail: bytes={} frames_received={} frames_gap={} frames_overflow={} source_overflows={} \
          skipped_bytes={} bit_slips={} configs_applied={} configs_refused={} source_errors={} \
          decoder_errors={} yaw_frames={} \
-         yaw_dropped={} yaw_write_errors={} cells={} {}={} input_{}_per_byte={}.{:02} \
+         yaw_dropped={} yaw_write_errors={} cells={} {}={} meter_overhead={}.{:02} \
+         input_{}_per_byte={}.{:02} \
          mcu_time_us={} spikes={} pool_pairs={} pool_peak={} pool_full={}\n",
         s.events,
         s.frames_processed,
@@ -240,6 +242,8 @@ async fn main_task(cfg: Config, mut queue: FrameReceiver) {
         needed,
         SysTickMeter::UNIT,
         s.cost_units,
+        overhead_x100 / 100,
+        overhead_x100 % 100,
         SysTickMeter::UNIT,
         per_byte_x100 / 100,
         per_byte_x100 % 100,
