@@ -116,6 +116,40 @@ mod replay {
         )
     }
 
+    /// A sensor whose cells do not fit the board's 3.5 MiB of SRAM for them (1280 x 720 px:
+    /// 11 MB of cells): the whole state runs from the PSRAM, and the output is the host's.
+    #[test]
+    #[ignore = "needs QEMU and the QEMU firmware build (cargo xtask test)"]
+    fn a_sensor_whose_cells_exceed_the_sram_runs_from_the_psram() -> Result<()> {
+        let dir = work("large-sensor");
+        let events = synth(
+            &[
+                "--duration",
+                "0.3",
+                "--seed",
+                "7",
+                "--width",
+                "1280",
+                "--height",
+                "720",
+            ],
+            &dir,
+        )?;
+        let (fw_csv, host_csv) = (dir.join("qemu.csv"), dir.join("host.csv"));
+        let report = Qemu::new(&events, &fw_csv, dir.join("run")).run()?;
+        let s = &report.summary;
+        eprintln!("qemu (large sensor): {}", s.counters());
+        assert_eq!(s.counter("cells")?, 1280 * 720, "{s}");
+        xtask::host_sim_run(&events, DEFAULTS, &host_csv)?;
+        assert!(
+            std::fs::read(&fw_csv)? == std::fs::read(&host_csv)?,
+            "QEMU output {} differs from host-sim run {}",
+            fw_csv.display(),
+            host_csv.display()
+        );
+        Ok(())
+    }
+
     /// The spike readout (rad/s from spike times) on the F405's strip, its units in a unit
     /// pool too small for the busiest moments: the inputs lost to it are the host's too, and
     /// the samples after a loss carry OVERFLOW on both.

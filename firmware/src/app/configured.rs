@@ -29,12 +29,25 @@ pub enum Refused {
 
 /// A board's RAM for pipeline state: the network's cells in `cells`; the spiking units (pairs
 /// or a unit pool, the active bitset) and the spike readout's memory in `units` when the board
-/// has a second region, else after the cells.
+/// has a second region, else after the cells. When the cells do not fit their region but
+/// everything fits the second one, everything goes there ([`Placement`]).
 pub struct Memory {
     /// The cells' region (a fast one: CCM, AXI SRAM).
     pub cells: Arena,
     /// A second region for the units, if the board gives one.
     pub units: Option<Arena>,
+}
+
+/// Where a configuration's state goes in a board's [`Memory`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Placement {
+    /// The cells in the cells' region, the units' state in the second one.
+    Split,
+    /// Everything in the cells' region (a board with one region).
+    AllInCells,
+    /// Everything in the second region: the cells do not fit theirs (the QEMU board's 3.5 MiB
+    /// of SRAM against its 16 MiB of PSRAM, for a large sensor's cells).
+    AllInUnits,
 }
 
 /// The slices of the units' state, in carving order: `(count, size, align)`.
@@ -60,24 +73,30 @@ struct Capacity {
 }
 
 impl Capacity {
-    /// What the settings need of the board, if they run on it at all.
-    fn needs(&self, settings: &Settings) -> Result<StorageNeeds, Refused> {
+    /// What the settings need of the board and where it goes, if they run on it at all.
+    fn needs(&self, settings: &Settings) -> Result<(StorageNeeds, Placement), Refused> {
         use core::mem::{align_of, size_of};
         let needs = settings.storage().map_err(|_| Refused::Layout)?;
         let cells = (needs.cells, size_of::<Cell>(), align_of::<Cell>());
         let [a, b, c, d] = unit_slices(&needs);
-        let (cell_bytes, unit_bytes) = match &self.units {
-            Some(_) => (bytes_for(&[cells]), bytes_for(&[a, b, c, d])),
-            None => (bytes_for(&[cells, a, b, c, d]), Some(0)),
+        let fits = |bytes: Option<usize>, cap: usize| bytes.is_some_and(|b| b <= cap);
+        let all = bytes_for(&[cells, a, b, c, d]);
+        let Some(units_cap) = self.units else {
+            return match fits(all, self.cells) {
+                true => Ok((needs, Placement::AllInCells)),
+                false => Err(Refused::Memory(all.unwrap_or(usize::MAX))),
+            };
         };
-        let too_big = |b: Option<usize>, cap: usize| b.is_none_or(|b| b > cap);
-        if too_big(cell_bytes, self.cells) {
-            return Err(Refused::Memory(cell_bytes.unwrap_or(usize::MAX)));
+        let (cell_bytes, unit_bytes) = (bytes_for(&[cells]), bytes_for(&[a, b, c, d]));
+        if fits(cell_bytes, self.cells) && fits(unit_bytes, units_cap) {
+            Ok((needs, Placement::Split))
+        } else if fits(all, units_cap) {
+            Ok((needs, Placement::AllInUnits))
+        } else if !fits(cell_bytes, self.cells) {
+            Err(Refused::Memory(cell_bytes.unwrap_or(usize::MAX)))
+        } else {
+            Err(Refused::Memory(unit_bytes.unwrap_or(usize::MAX)))
         }
-        if too_big(unit_bytes, self.units.unwrap_or(0)) {
-            return Err(Refused::Memory(unit_bytes.unwrap_or(usize::MAX)));
-        }
-        Ok(needs)
     }
 }
 
@@ -90,20 +109,25 @@ impl Memory {
     }
 
     /// The settings' pipeline over fresh state carved from the regions (while `self` is
-    /// borrowed); `needs` is what [`Capacity::needs`] said of them.
+    /// borrowed); `needs` and `placement` are what [`Capacity::needs`] said of them.
     fn build<'m>(
         &'m mut self,
         kernel: &'m Kernel,
         settings: &Settings,
-        needs: StorageNeeds,
+        (needs, placement): (StorageNeeds, Placement),
     ) -> Result<Built<'m>, Refused> {
         let short = Refused::Memory(0);
         let mut cells_region = self.cells.carve();
-        let cells = cells_region.take(needs.cells, Cell::DEFAULT).ok_or(short)?;
         let mut units_region = self.units.as_mut().map(Arena::carve);
-        let rest = match units_region.as_mut() {
+        let (first, second) = match (placement, units_region.as_mut()) {
+            (Placement::Split, Some(units)) => (&mut cells_region, Some(units)),
+            (Placement::AllInUnits, Some(units)) => (units, None),
+            _ => (&mut cells_region, None),
+        };
+        let cells = first.take(needs.cells, Cell::DEFAULT).ok_or(short)?;
+        let rest = match second {
             Some(r) => r,
-            None => &mut cells_region,
+            None => first,
         };
         let units = rest
             .take(needs.unit_pairs, UnitPair::DEFAULT)
@@ -139,13 +163,18 @@ pub async fn run<K: YawSink, M: CostMeter>(
     seq: &mut u8,
 ) -> Result<Exit, Refused> {
     let capacity = memory.capacity();
-    let needs = capacity.needs(settings)?;
-    let mut pipeline = memory.build(kernel, settings, needs)?;
+    let (needs, placement) = capacity.needs(settings)?;
+    let mut pipeline = memory.build(kernel, settings, (needs, placement))?;
     defmt::info!(
-        "processing: {} cells, {} unit pairs, {} pool owners",
+        "processing: {} cells, {} unit pairs, {} pool owners, {}",
         needs.cells,
         needs.unit_pairs,
-        needs.pool_owners
+        needs.pool_owners,
+        match placement {
+            Placement::Split => "cells and units apart",
+            Placement::AllInCells => "one region",
+            Placement::AllInUnits => "all in the units' region",
+        }
     );
     let accept = |new: &Settings| capacity.needs(new).is_ok();
     Ok(processing::run::<_, M>(queue, &mut pipeline, sink, clock, seq, settings, &accept).await)

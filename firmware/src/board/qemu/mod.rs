@@ -40,11 +40,17 @@ use crate::app::processing::Clock;
 use crate::app::{self, ByteSource, CostMeter, FrameReceiver, FrameSender, Overload, SourceError};
 use time::SysTickMeter;
 
-/// The pipeline's state: all 16 MiB of the PSRAM (cells, then the units).
-const STATE_BYTES: usize = 16 * 1024 * 1024;
+/// The network's cells: 3.5 MiB of the 4 MiB SRAM (the rest: the program's statics, ~75 KiB,
+/// and the stack). Not zeroed at start (`.uninit`): each configuration initialises its slices.
+const CELL_BYTES: usize = 3584 * 1024;
+/// The units' state (pairs or a unit pool, the active bitset, the spike readout's cells): all
+/// 16 MiB of the PSRAM; the cells too when they do not fit the SRAM.
+const UNIT_BYTES: usize = 16 * 1024 * 1024;
 
+#[link_section = ".uninit.CELLS"]
+static mut CELLS: MaybeUninit<Region<CELL_BYTES>> = MaybeUninit::uninit();
 #[link_section = ".psram"]
-static mut STATE: MaybeUninit<Region<STATE_BYTES>> = MaybeUninit::uninit();
+static mut UNITS: MaybeUninit<Region<UNIT_BYTES>> = MaybeUninit::uninit();
 
 /// The default TDE parameters (tables computed at compile time).
 static KERNEL: Kernel = Kernel::DEFAULT;
@@ -166,9 +172,13 @@ fn config_error(msg: &str) -> ! {
 
 #[embassy_executor::task]
 async fn main_task(cfg: Config, mut queue: FrameReceiver) {
-    // SAFETY: STATE is used by this arena only, for the rest of the program.
-    let cells = unsafe { Arena::over(core::ptr::addr_of_mut!(STATE)) };
-    let mut memory = Memory { cells, units: None };
+    // SAFETY: CELLS and UNITS are used by these arenas only, for the rest of the program.
+    let mut memory = unsafe {
+        Memory {
+            cells: Arena::over(core::ptr::addr_of_mut!(CELLS)),
+            units: Some(Arena::over(core::ptr::addr_of_mut!(UNITS))),
+        }
+    };
     let mut sink = host::YawFile::create();
     let clock = if cfg.live {
         Clock::Live
@@ -193,7 +203,7 @@ async fn main_task(cfg: Config, mut queue: FrameReceiver) {
             Err(e) => {
                 defmt::error!("cannot run the configuration: {}", e);
                 config_error(
-                    "bad layout (window outside the sensor), or more state than the PSRAM holds",
+                    "bad layout (window outside the sensor), or more state than the SRAM and PSRAM hold",
                 )
             }
         }
