@@ -12,6 +12,9 @@ const EXP2_TABLE: [u32; 257] = exp2_table();
 /// `ln(2)` in Q0.32.
 pub const LN2_Q32: u64 = 2_977_044_472;
 
+/// `log2(e)` in Q32 (1.4427 · 2^32).
+pub const LOG2E_Q32: u64 = 6_196_328_019;
+
 /// `log2(x / 2^frac_bits)` in Q16.16 for `x > 0`; `i32::MIN` for `x == 0`.
 #[inline]
 pub fn log2_q16(x: u64, frac_bits: u32) -> i32 {

@@ -1281,7 +1281,7 @@ impl<'a, L: Layout> Network<'a, L> {
     /// The first slot of `from..end` in use whose units are all at rest at `t`. A scan over
     /// the owners and the units side by side: most of a sweep's work, most slots it passes
     /// being free or busy (with a test of each slot's bounds and owner apart, 29
-    /// instructions per busy slot in QEMU, where this takes about half).
+    /// instructions per busy slot in the Cortex-M4 build, where this takes 14).
     #[inline]
     fn next_at_rest(&self, from: usize, end: usize, t: u32) -> Option<usize> {
         let owners = self.pool.as_ref()?.owners();

@@ -29,6 +29,7 @@
 use fixed::types::U1F31;
 
 use crate::exp_table::{scale_q31, ExpDecay, ONE_Q31};
+use crate::log2::LOG2E_Q32;
 use crate::params::{ParamError, TdeParams, Trace, TAU_SLOW_US, TRACE_MAX};
 
 mod orbit;
@@ -293,9 +294,7 @@ impl Kernel {
         let delta_q32 = (u64::from(p.t_ref_us) << 32) / u64::from(p.tau_trg_us.max(1));
         let e_delta_q31 = u128::from(self.exp_trg.decay_bits(p.t_ref_us));
         let ln_q32 = u128::from(delta_q32) + ((INV_E_Q32 * e_delta_q31) >> 31);
-        // log2 e in Q32.
-        const LOG2E_Q32: u128 = 6_196_328_019;
-        i32::try_from((ln_q32 * LOG2E_Q32) >> 48).unwrap_or(i32::MAX)
+        i32::try_from((ln_q32 * u128::from(LOG2E_Q32)) >> 48).unwrap_or(i32::MAX)
     }
 
     /// Whether the unit, left alone, will spike again (it is in a burst).
@@ -1515,7 +1514,7 @@ mod burst_tests {
         let (one, two) = (least(1), least(2));
         assert!(spikes(two - 1) == 1 && spikes(one - 1) == 0);
         let measured = (f64::from(two) / f64::from(one)).log2();
-        let delta = 100.0 / 20_000.0;
+        let delta = f64::from(k.params.t_ref_us) / f64::from(k.params.tau_trg_us);
         let closed = (delta + (-1.0f64 - delta).exp()) * core::f64::consts::LOG2_E;
         let got = f64::from(k.second_spike_log2_q16()) / 65_536.0;
         assert!((got - closed).abs() < 1e-4, "{got} vs {closed}");

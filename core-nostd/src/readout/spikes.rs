@@ -167,7 +167,7 @@ use super::shared::{
 use super::stride_choice::{Stride, StrideChoice};
 use super::{Readout, Side};
 use crate::layout::{Dir, Layout};
-use crate::log2::{exp2_q16, log2_q16};
+use crate::log2::{exp2_q16, log2_q16, LOG2E_Q32};
 use crate::network::{NetSink, Spike};
 use crate::params::Trace;
 use crate::time::EventTime;
@@ -189,10 +189,8 @@ pub const NEAR_DRIVE_SHARE_LOG2: i32 = -9962;
 /// the near decode is the one to keep.
 pub const OVERRULING_FLOORS: i32 = 2;
 
-/// `log2(e)` in Q32.
-const LOG2E_Q32: u64 = 6_196_328_019;
 /// `log2(e)` in Q16.
-const LOG2E_Q16: i64 = 94_548;
+const LOG2E_Q16: i64 = (LOG2E_Q32 >> 16) as i64;
 /// A clean interval of `L` µs matches the predicted current within `TOL_Q16 / L` (Q16.16
 /// `log2`): 2 µs of timing, `log2(e) · 2 / L`.
 const TOL_Q16: u32 = 2 * LOG2E_Q16 as u32;

@@ -82,9 +82,10 @@ impl Capacity {
         let fits = |bytes: Option<usize>, cap: usize| bytes.is_some_and(|b| b <= cap);
         let all = bytes_for(&[cells, a, b, c, d]);
         let Some(units_cap) = self.units else {
-            return match fits(all, self.cells) {
-                true => Ok((needs, Placement::AllInCells)),
-                false => Err(Refused::Memory(all.unwrap_or(usize::MAX))),
+            return if fits(all, self.cells) {
+                Ok((needs, Placement::AllInCells))
+            } else {
+                Err(Refused::Memory(all.unwrap_or(usize::MAX)))
             };
         };
         let (cell_bytes, unit_bytes) = (bytes_for(&[cells]), bytes_for(&[a, b, c, d]));
