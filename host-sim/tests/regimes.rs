@@ -237,7 +237,7 @@ fn drone_forward_flight() {
     // The issue asks for 1.25: 1.15 since the spike readout reads lone spikes (1.20 before the
     // aperture gate, which improves both readouts here, the calibrated one more: it reads the
     // vertical neighbours' traces, the spike readout knows their onsets only where their units
-    // burst, README: "Pitch and roll"; 1.35 was allowed then).
+    // burst, `docs/figures-history.md`: "Pitch and roll leak"; 1.35 was allowed then).
     check_turning("drone", &f, &s, (0.95, 0.17, 0.1), 1.25);
 }
 
@@ -550,7 +550,7 @@ fn rotation_with_the_principal_point_off_centre() {
 /// about 0.15 / 0.19 (seed 11: 0.339 / 0.354 before, 0.151 / 0.185 after), and 0.174 / 0.236
 /// since regions whose decodes split in sign count less (`field::split_variance`: here the
 /// many split regions read about 0, by chance the truth); the issue's 0.03 for a camera that
-/// does not turn is not reached (README: "Pitch and roll").
+/// does not turn is not reached (README: "Known limits").
 #[test]
 fn a_camera_that_only_wobbles() {
     let (f, s) = scene_with(Regime::Rotation, 7, 2.0, |c| {

@@ -8,7 +8,7 @@
 //! the edge's slope. Under pitch and roll a drone's view moves vertically at up to ~200 px/s
 //! while it yaws slowly, and its near-horizontal edges (roofs, window rows: large `|g_y / g_x|`)
 //! read as fast turns whose sign follows each edge's slant (the aperture problem; see the
-//! README, "Pitch and roll").
+//! README, "Known limits", and `docs/figures-history.md`, "Pitch and roll leak").
 //!
 //! # The rule
 //! The FAC traces of the pixels `s_v` rows above and below (the layout's stride; what a vertical
