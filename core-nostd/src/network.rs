@@ -1268,31 +1268,34 @@ impl<'a, L: Layout> Network<'a, L> {
         let first = count.min(pool.capacity().saturating_sub(start));
         for (from, end) in [(start, start + first), (0, count - first)] {
             let mut s = from;
-            while let Some(found) = self.next_at_rest(s, end, t) {
-                if let Some(c) = self.cell_of(found) {
-                    self.finish_skipping(c, found, t, sink);
-                    self.release(c, found);
-                }
+            while let Some((found, c)) = self.next_at_rest(s, end, t) {
+                self.finish_skipping(c, found, t, sink);
+                self.release(c, found);
                 s = found + 1;
             }
         }
     }
 
-    /// The first slot of `from..end` in use whose units are all at rest at `t`. A scan over
+    /// The first slot of `from..end` in use whose units are all at rest at `t`, and the cell
+    /// owning it. A scan over
     /// the owners and the units side by side: most of a sweep's work, most slots it passes
     /// being free or busy (with a test of each slot's bounds and owner apart, 29
     /// instructions per busy slot in the Cortex-M4 build, where this takes 14).
     #[inline]
-    fn next_at_rest(&self, from: usize, end: usize, t: u32) -> Option<usize> {
+    fn next_at_rest(&self, from: usize, end: usize, t: u32) -> Option<(usize, usize)> {
         let owners = self.pool.as_ref()?.owners();
         let end = end.min(owners.len()).min(self.units.len());
         let (owners, units) = (owners.get(from..end)?, self.units.get(from..end)?);
         let kernel = self.kernel;
-        let i = owners
+        owners
             .iter()
             .zip(units)
-            .position(|(&o, pair)| Pool::owned(o) && pair.at_rest(kernel, t))?;
-        Some(from + i)
+            .enumerate()
+            .find_map(|(i, (&o, pair))| {
+                Pool::cell_of_word(o)
+                    .filter(|_| pair.at_rest(kernel, t))
+                    .map(|c| (from + i, c))
+            })
     }
 
     /// Moves the network's clock to `t`: emits every pending spike reported at or before `t`

@@ -99,25 +99,27 @@ impl<'a> Pool<'a> {
         }
     }
 
-    /// The owner word of every slot (see [`Pool::owned`]).
+    /// The owner word of every slot (see [`Pool::cell_of_word`]).
     #[inline]
     pub(super) fn owners(&self) -> &[u32] {
         self.owners
     }
 
-    /// Whether an owner word is a cell's (the slot is in use), not a free slot's.
+    /// The cell an owner word names, if it is a cell's (the slot is in use), not a free
+    /// slot's.
     #[inline(always)]
-    pub(super) const fn owned(word: u32) -> bool {
-        word & FREE == 0
+    pub(super) const fn cell_of_word(word: u32) -> Option<usize> {
+        if word & FREE == 0 {
+            Some(word as usize)
+        } else {
+            None
+        }
     }
 
     /// The cell owning `slot`, if it is in use.
     #[inline]
     pub(super) fn owner(&self, slot: usize) -> Option<usize> {
-        match self.owners.get(slot) {
-            Some(&o) if Self::owned(o) => Some(o as usize),
-            _ => None,
-        }
+        self.owners.get(slot).copied().and_then(Self::cell_of_word)
     }
 
     /// The slots the sweep looks at this period: the next `len / SWEEP_TICKS` (at least 1),

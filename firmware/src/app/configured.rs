@@ -39,7 +39,7 @@ pub struct Memory {
 }
 
 /// Where a configuration's state goes in a board's [`Memory`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
 enum Placement {
     /// The cells in the cells' region, the units' state in the second one.
     Split,
@@ -126,10 +126,7 @@ impl Memory {
             _ => (&mut cells_region, None),
         };
         let cells = first.take(needs.cells, Cell::DEFAULT).ok_or(short)?;
-        let rest = match second {
-            Some(r) => r,
-            None => first,
-        };
+        let rest = second.unwrap_or(first);
         let units = rest
             .take(needs.unit_pairs, UnitPair::DEFAULT)
             .ok_or(short)?;
@@ -167,15 +164,11 @@ pub async fn run<K: YawSink, M: CostMeter>(
     let (needs, placement) = capacity.needs(settings)?;
     let mut pipeline = memory.build(kernel, settings, (needs, placement))?;
     defmt::info!(
-        "processing: {} cells, {} unit pairs, {} pool owners, {}",
+        "processing: {} cells, {} unit pairs, {} pool owners, placement {}",
         needs.cells,
         needs.unit_pairs,
         needs.pool_owners,
-        match placement {
-            Placement::Split => "cells and units apart",
-            Placement::AllInCells => "one region",
-            Placement::AllInUnits => "all in the units' region",
-        }
+        placement
     );
     let accept = |new: &Settings| capacity.needs(new).is_ok();
     Ok(processing::run::<_, M>(queue, &mut pipeline, sink, clock, seq, settings, &accept).await)
