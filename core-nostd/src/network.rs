@@ -274,7 +274,8 @@ pub trait NetSink {
     fn trigger(&mut self, _t: &Trigger) {}
     /// One spike (spikes of one unit arrive in time order; a spike at `t` arrives before any
     /// event after `t` and at the latest at the first [`Network::tick`] at or after `t`, or up
-    /// to [`NetSink::ahead_us`] earlier).
+    /// to [`NetSink::ahead_us`] earlier, or [`NetSink::reach_us`] with
+    /// [`Network::event_in_ahead`]).
     fn spike(&mut self, _s: Spike) {}
     /// A run of spikes of one unit (cell `cell`, orientation `dir`), at the whole µs in
     /// `times`, in time order: what [`NetSink::spike`] would get one by one, in the same order
@@ -294,6 +295,13 @@ pub trait NetSink {
     /// spikes up to the clock, never taken back.
     fn ahead_us(&self) -> u32 {
         0
+    }
+    /// How far (µs) beyond the clock this sink takes spikes at all: where the caller knows
+    /// the inputs to come ([`Network::event_in_ahead`]), a unit emits its spikes up to its
+    /// cell's next event, at most this far ahead, right after an input. Default:
+    /// [`NetSink::ahead_us`].
+    fn reach_us(&self) -> u32 {
+        self.ahead_us()
     }
     /// A spike emitted ahead of the clock that an event has cancelled (the same [`Spike`] as
     /// given to [`NetSink::spike`]; the latest of a unit first).
@@ -318,6 +326,18 @@ pub trait NetSink {
     fn tail_memory_us(&self) -> u32 {
         u32::MAX
     }
+}
+
+/// What a caller that reads its input ahead (a recording, not a live sensor) knows of the next
+/// event at an event's cell ([`Network::event_in_ahead`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NextInput {
+    /// The cell's next event comes at this time (µs), and no event between the two in the
+    /// stream is later than it: every output tick up to it comes after that event.
+    At(u32),
+    /// No event at the cell is known before this time (µs; the end of what was read ahead).
+    /// A hint: spikes emitted up to it that an earlier input cancels are taken back.
+    NotBefore(u32),
 }
 
 /// Which FAC pixels the network reads for one event of a sink with [`NetSink::NEAR`].
@@ -723,6 +743,13 @@ impl<'a, L: Layout> Network<'a, L> {
         self.units.get(self.slot(c)?)
     }
 
+    /// The state an event at pixel `(x, y)` will touch first: its cell and its units (where
+    /// they run). For a caller that reads its input ahead and fetches it into the cache early.
+    pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {
+        let c = self.layout.cell(x, y)?;
+        Some((self.cells.get(c)?, self.units(c)))
+    }
+
     /// Unit pairs with a spike pending (marked in the active bitset).
     pub fn pending_cells(&self) -> usize {
         self.active.iter().map(|w| w.count_ones() as usize).sum()
@@ -884,6 +911,62 @@ impl<'a, L: Layout> Network<'a, L> {
             self.unit_update(c, mask, &own, ev.t_us, far.fac, sink);
         }
         true
+    }
+
+    /// [`Network::event_in`] for a caller that reads its input ahead: then the units of the
+    /// event's cell emit their spikes up to `next` (at most [`NetSink::reach_us`] beyond the
+    /// event) at once, and a unit whose cell's next event is known ([`NextInput::At`]) is left
+    /// out of [`Network::tick`]'s visits until that event. The spikes are the same as
+    /// without, each in its own output period; only the visits to units in a burst go (one
+    /// per output period and unit in a dense burst, without). Spiking, unpooled networks with
+    /// a sink that takes every spike; others do just [`Network::event_in`].
+    pub fn event_in_ahead<S: NetSink>(
+        &mut self,
+        ev: Event,
+        c: usize,
+        next: NextInput,
+        sink: &mut S,
+    ) -> bool {
+        let passed = self.event_in(ev, c, sink);
+        if self.spiking::<S>() && !S::SPARSE && self.pool.is_none() {
+            self.emit_ahead(c, ev.t_us, next, sink);
+        }
+        passed
+    }
+
+    /// The units of cell `c` (unpooled: slot `c`), after an event at `t`, emit their spikes up
+    /// to `next`, at most [`NetSink::reach_us`] beyond `t`; they stay in the tick's visits
+    /// only while spikes remain that no known event of theirs comes before.
+    fn emit_ahead<S: NetSink>(&mut self, c: usize, t: u32, next: NextInput, sink: &mut S) {
+        let (to, known) = match next {
+            NextInput::At(to) => (to, true),
+            NextInput::NotBefore(to) => (to, false),
+        };
+        let reach = sink.reach_us();
+        // Nothing when `to` is not after `t` (an event out of order).
+        let Ok(d) = u32::try_from(to.wrapping_sub(t) as i32) else {
+            return;
+        };
+        if d == 0 || reach == 0 {
+            return;
+        }
+        let h = t.wrapping_add(d.min(reach));
+        let until = fine(h);
+        self.emitting_until(until);
+        let kernel = self.kernel;
+        let Some(pair) = self.units.get_mut(c) else {
+            return;
+        };
+        let (stats, run) = (&mut self.stats, &mut self.run);
+        emit_pair::<S, _, true>(kernel, pair, c, h, until, sink, run, |dir, n| {
+            count(stats, dir, n)
+        });
+        if pair.scheduled() && !(known && d <= reach) {
+            self.mark_active(c);
+        } else {
+            // Done, or its cell's next event comes first and acts on it then.
+            self.mark_idle(c);
+        }
     }
 
     /// The pixel's own FAC traces just before the event (decayed once, used twice), and whether
@@ -1172,9 +1255,7 @@ impl<'a, L: Layout> Network<'a, L> {
         if let Some(pool) = &mut self.pool {
             pool.give_back(s);
         }
-        if let Some(w) = self.active.get_mut(s / 32) {
-            *w &= !(1 << (s % 32));
-        }
+        self.mark_idle(s);
     }
 
     /// Notes that spikes are being emitted up to `until`.
@@ -1182,6 +1263,14 @@ impl<'a, L: Layout> Network<'a, L> {
     fn emitting_until(&mut self, until: FineTime) {
         if self.emitted_until.is_none_or(|e| is_late(e, until)) {
             self.emitted_until = Some(until);
+        }
+    }
+
+    /// Slot `s` out of the tick's visits.
+    #[inline]
+    fn mark_idle(&mut self, s: usize) {
+        if let Some(w) = self.active.get_mut(s / 32) {
+            *w &= !(1 << (s % 32));
         }
     }
 

@@ -13,7 +13,7 @@
 use crate::event::Event;
 use crate::flags;
 use crate::layout::Layout;
-use crate::network::{Network, PoolUse};
+use crate::network::{Cell, Network, NextInput, PoolUse, UnitPair};
 use crate::readout::{Readout, Side, SideSink, YawSample};
 use crate::time::EventTime;
 
@@ -143,6 +143,34 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     /// an event in the layout and of a sample is out of line.
     #[inline(always)]
     pub fn event<F: FnMut(YawSample)>(&mut self, ev: Event, out: &mut F) {
+        self.clock_to_event(ev, out);
+        // One layout: the side networks' cell is the main one's, and an event outside it is
+        // counted by the main network alone.
+        if let Some(c) = self.net.locate(ev) {
+            self.event_at::<false>(ev, c, NextInput::NotBefore(ev.t_us));
+        }
+    }
+
+    /// [`Pipeline::event`] for a caller that reads its input ahead and knows `next`, the next
+    /// event at this event's cell: the main network's units emit their spikes up to it at
+    /// once ([`Network::event_in_ahead`]). The samples are the same.
+    #[inline(always)]
+    pub fn event_ahead<F: FnMut(YawSample)>(&mut self, ev: Event, next: NextInput, out: &mut F) {
+        self.clock_to_event(ev, out);
+        if let Some(c) = self.net.locate(ev) {
+            self.event_at::<true>(ev, c, next);
+        }
+    }
+
+    /// The main network's state an event at `(x, y)` will touch first
+    /// ([`Network::state_at`]).
+    pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {
+        self.net.state_at(x, y)
+    }
+
+    /// Emits every sample due before event `ev`.
+    #[inline(always)]
+    fn clock_to_event<F: FnMut(YawSample)>(&mut self, ev: Event, out: &mut F) {
         let t = EventTime::from_us(ev.t_us);
         match self.next_out {
             None => self.next_out = Some(t.add_us(self.period_us)),
@@ -151,11 +179,6 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
             Some(_) => {}
         }
         self.last_event = t;
-        // One layout: the side networks' cell is the main one's, and an event outside it is
-        // counted by the main network alone.
-        if let Some(c) = self.net.locate(ev) {
-            self.event_at(ev, c);
-        }
     }
 
     /// An event at cell `c` of the layout, through every network. The near units' network
@@ -166,9 +189,14 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
     /// units' filter is their own (another `tau_F`). The side networks are called by name, not
     /// through [`Pipeline::each_side`] with a test of the side: that cost the F405 window with
     /// the spike readout 3 instructions per event (QEMU, dev03).
+    /// With `AHEAD`, the main network's units emit up to `next` ([`Network::event_in_ahead`]).
     #[inline(never)]
-    fn event_at(&mut self, ev: Event, c: usize) {
-        let passed = self.net.event_in(ev, c, &mut self.readout);
+    fn event_at<const AHEAD: bool>(&mut self, ev: Event, c: usize, next: NextInput) {
+        let passed = if AHEAD {
+            self.net.event_in_ahead(ev, c, next, &mut self.readout)
+        } else {
+            self.net.event_in(ev, c, &mut self.readout)
+        };
         if !(R::SLOW_UNITS || R::NEAR_UNITS) {
             return;
         }

@@ -16,7 +16,10 @@ use fixed::types::U16F16;
 
 use crate::event::Event;
 use crate::layout::{Dense, Layout, PaperBoxes, UnitMask};
-use crate::network::{active_words, InputFilter, NetError, NetState, NetStats, Network, PoolUse};
+use crate::network::{
+    active_words, Cell, InputFilter, NetError, NetState, NetStats, Network, NextInput, PoolUse,
+    UnitPair,
+};
 use crate::pipeline::{Pipeline, Sides, ONSET_GAP_US};
 use crate::readout::calibrated::{default_tau_a_us, has_near, Calibrated, Calibration};
 use crate::readout::normalized::Normalized;
@@ -568,6 +571,17 @@ impl<'a, R: Readout> OnLayout<'a, R> {
         each_layout_pipeline!(self, p => p.event(ev, out));
     }
 
+    /// Processes one event whose cell's next event is known (see [`Pipeline::event_ahead`]).
+    #[inline]
+    pub fn event_ahead<F: FnMut(YawSample)>(&mut self, ev: Event, next: NextInput, out: &mut F) {
+        each_layout_pipeline!(self, p => p.event_ahead(ev, next, out));
+    }
+
+    /// The state an event at `(x, y)` will touch first (see [`Pipeline::state_at`]).
+    pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {
+        each_layout_pipeline!(self, p => p.state_at(x, y))
+    }
+
     /// Moves the clock to `now_us` without an event (see [`Pipeline::poll`]).
     pub fn poll<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
         each_layout_pipeline!(self, p => p.poll(now_us, out));
@@ -648,6 +662,17 @@ impl Built<'_> {
     #[inline]
     pub fn event<F: FnMut(YawSample)>(&mut self, ev: Event, out: &mut F) {
         each_pipeline!(self, p => p.event(ev, out));
+    }
+
+    /// Processes one event whose cell's next event is known (see [`Pipeline::event_ahead`]).
+    #[inline]
+    pub fn event_ahead<F: FnMut(YawSample)>(&mut self, ev: Event, next: NextInput, out: &mut F) {
+        each_pipeline!(self, p => p.event_ahead(ev, next, out));
+    }
+
+    /// The state an event at `(x, y)` will touch first (see [`Pipeline::state_at`]).
+    pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {
+        each_pipeline!(self, p => p.state_at(x, y))
     }
 
     /// Moves the clock to `now_us` without an event (see [`Pipeline::poll`]).

@@ -7,6 +7,7 @@ pub mod cli;
 pub mod commands;
 pub mod eval;
 pub mod formats;
+pub mod lookahead;
 pub mod output;
 pub mod pipeline;
 pub mod plot;

@@ -14,7 +14,7 @@ use anyhow::{bail, Context, Result};
 use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::Layout;
-use core_nostd::network::{Cell, NetState, PoolUse, UnitPair};
+use core_nostd::network::{Cell, NetState, NextInput, PoolUse, UnitPair};
 use core_nostd::oracle::{OracleNetwork, OracleParams, OracleSpikeYaw, OracleYaw};
 use core_nostd::params::TdeParams;
 use core_nostd::readout::spikes::SpikeCell;
@@ -23,6 +23,7 @@ use core_nostd::settings::{Built, LayoutChoice, ReadoutChoice, Settings};
 use core_nostd::unit::Kernel;
 
 use crate::formats::{self, Event64, EventChunks as Chunks, Format};
+use crate::lookahead::{prefetch, Lookahead, PREFETCH_DISTANCE};
 use crate::output::{write_atomically, AtomicFile};
 use crate::samples::{Decimated, Samples};
 use crate::timeline::{Pieces, TimeJumps, RESTART};
@@ -89,6 +90,10 @@ pub struct RunOptions {
     /// Spiking readouts: unit state in a pool of this many unit pairs (`None`: one pair per
     /// cell; see `core_nostd::network::pool`).
     pub unit_pool: Option<u32>,
+    /// Read the recording ahead ([`crate::lookahead`]): with the normalized readout, the
+    /// units emit their spikes up to their pixel's next event at once. The same output either
+    /// way; `false` runs each event as a live sensor's would come.
+    pub read_ahead: bool,
 }
 
 impl Default for RunOptions {
@@ -107,6 +112,7 @@ impl Default for RunOptions {
             rate_hz: 1000,
             unit_pool: None,
             tau_a_ms: None,
+            read_ahead: true,
         }
     }
 }
@@ -402,7 +408,13 @@ pub fn run_stream(
     let mut pieces = Pieces::new(source);
     let start = Instant::now();
     let mut out = match opts.model {
-        Model::Fixed => fixed(&settings, &Kernel::DEFAULT, &mut pieces, samples)?,
+        Model::Fixed => {
+            // Reading ahead serves only the normalized readout's dense, unpooled network.
+            let ahead =
+                (opts.read_ahead && is_normalized(&settings) && settings.unit_pool.is_none())
+                    .then(|| Lookahead::new(settings.width, settings.height));
+            fixed(&settings, &Kernel::DEFAULT, &mut pieces, samples, ahead)?
+        }
         Model::Float => float(&settings, &camera, &mut pieces, samples)?,
     };
     if pieces.events == 0 {
@@ -453,6 +465,7 @@ fn fixed(
     kernel: &Kernel,
     pieces: &mut Pieces<'_>,
     mut samples: Samples,
+    mut ahead: Option<Lookahead>,
 ) -> Result<RunOutput> {
     let needs = settings.storage().map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut cells = vec![Cell::default(); needs.cells];
@@ -479,6 +492,7 @@ fn fixed(
             settings.period_us,
             &mut samples,
             restart,
+            ahead.as_mut(),
         )?;
         outputs += p.outputs();
         ignored += p.net_stats().ignored;
@@ -669,7 +683,8 @@ fn finish(samples: Samples, normalized: bool, outputs: u64, ignored: u64) -> Res
 
 /// Feeds one piece (from its first event to its end) to a fresh pipeline on its u32 clock
 /// (relative to the piece's first event, wrapping), sending samples with times back on the
-/// recording's clock.
+/// recording's clock; through `ahead` when given (read ahead: see [`crate::lookahead`]).
+#[allow(clippy::too_many_arguments)]
 fn feed(
     p: &mut Built<'_>,
     first: Event64,
@@ -677,6 +692,7 @@ fn feed(
     period_us: u32,
     samples: &mut Samples,
     restart: bool,
+    mut ahead: Option<&mut Lookahead>,
 ) -> Result<()> {
     let t0 = first.t_us;
     let bar = progress_bar(0);
@@ -686,17 +702,49 @@ fn feed(
         restart,
     };
     let mut k: u64 = 0;
-    let mut last = step(p, &first, t0, period_us, &mut k, &mut out);
+    let mut last = first.t_us.wrapping_sub(t0) as u32;
+    match ahead.as_deref_mut() {
+        Some(la) => la.push(first),
+        None => last = step(p, &first, None, t0, period_us, &mut k, &mut out),
+    }
     loop {
         let slice = pieces.next_slice()?;
         if slice.is_empty() {
             break;
         }
-        for e in slice {
-            last = step(p, e, t0, period_us, &mut k, &mut out);
-            out.flush_if_full()?;
+        match ahead.as_deref_mut() {
+            Some(la) => {
+                for e in slice {
+                    la.push(*e);
+                    while let Some((e, next)) = la.pop(t0, false) {
+                        if let Some((c, u)) = la
+                            .peek(PREFETCH_DISTANCE)
+                            .and_then(|(x, y)| p.state_at(x, y))
+                        {
+                            prefetch(c);
+                            if let Some(u) = u {
+                                prefetch(u);
+                            }
+                        }
+                        last = step(p, &e, Some(next), t0, period_us, &mut k, &mut out);
+                    }
+                    out.flush_if_full()?;
+                }
+            }
+            None => {
+                for e in slice {
+                    last = step(p, e, None, t0, period_us, &mut k, &mut out);
+                    out.flush_if_full()?;
+                }
+            }
         }
         bar.set_position(pieces.events);
+    }
+    if let Some(la) = ahead {
+        while let Some((e, next)) = la.pop(t0, true) {
+            last = step(p, &e, Some(next), t0, period_us, &mut k, &mut out);
+            out.flush_if_full()?;
+        }
     }
     p.finish(last, &mut |s: YawSample| {
         k += 1;
@@ -712,13 +760,14 @@ fn feed(
     Ok(())
 }
 
-/// Feeds one event of a piece starting at `t0` (µs) to the pipeline, sending the samples due
-/// before it (the `k`-th of the piece at `t0 + k` periods); returns its time on the pipeline's
-/// clock.
+/// Feeds one event of a piece starting at `t0` (µs) to the pipeline (with what is known of its
+/// pixel's next event, when read ahead), sending the samples due before it (the `k`-th of the
+/// piece at `t0 + k` periods); returns its time on the pipeline's clock.
 #[inline]
 fn step(
     p: &mut Built<'_>,
     e: &Event64,
+    next: Option<NextInput>,
     t0: u64,
     period_us: u32,
     k: &mut u64,
@@ -730,7 +779,7 @@ fn step(
         y: e.y,
         on: e.on,
     };
-    p.event(ev, &mut |s: YawSample| {
+    let mut sample = |s: YawSample| {
         *k += 1;
         let t = t0 + *k * u64::from(period_us);
         out.push(
@@ -738,7 +787,11 @@ fn step(
             f64::from(s.yaw_rate.to_bits()) / 65536.0,
             s.flags,
         );
-    });
+    };
+    match next {
+        Some(next) => p.event_ahead(ev, next, &mut sample),
+        None => p.event(ev, &mut sample),
+    }
     ev.t_us
 }
 

@@ -21,7 +21,9 @@
 //! network's clock ([`NetSink::ahead_us`]), into one bin per output time, each spike weighted to
 //! its own output time; a spike an input takes back ([`NetSink::retract`]) leaves its bin again.
 //! An output adds only its own bin: it counts exactly the spikes up to its time. Outputs must
-//! come once per period (as [`crate::pipeline::Pipeline`] calls them).
+//! come once per period (as [`crate::pipeline::Pipeline`] calls them). A caller that reads its
+//! recording ahead ([`crate::network::Network::event_in_ahead`]) has units emit up to 62 output
+//! periods ahead ([`NetSink::reach_us`]; on the host), the same spikes into the same bins.
 
 use fixed::types::I16F16;
 
@@ -34,7 +36,14 @@ use crate::unit::elapsed_us;
 /// Fractional bits of the integrator.
 const FRAC: u32 = 24;
 
+/// Output periods the readout holds spikes for (the current one and those ahead): on the
+/// host also those a recording read ahead emits at once ([`NetSink::reach_us`]: 62 periods, 62
+/// ms at 1 kHz, longer than most bursts).
+#[cfg(not(target_os = "none"))]
+const RING: usize = 256;
+
 /// Output periods the readout holds spikes for (the current one and those ahead).
+#[cfg(target_os = "none")]
 const RING: usize = 16;
 
 /// How far ahead of the clock (µs) the readout takes spikes, at most. The spikes that count
@@ -169,6 +178,14 @@ impl NetSink for Normalized {
     fn ahead_us(&self) -> u32 {
         if self.started {
             AHEAD_MAX_US.min(self.period_us.saturating_mul(RING as u32 - 2))
+        } else {
+            0
+        }
+    }
+
+    fn reach_us(&self) -> u32 {
+        if self.started {
+            self.period_us.saturating_mul(RING as u32 - 2)
         } else {
             0
         }

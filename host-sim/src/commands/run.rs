@@ -79,6 +79,12 @@ pub struct RunFlags {
     /// and flagged OVERFLOW (bit 2) on the next sample.
     #[arg(long, value_name = "N")]
     pub unit_pool: Option<u32>,
+    /// Run each event as it would come from a live sensor, without reading the recording
+    /// ahead. The output is the same; with the normalized readout the dense network then
+    /// visits each unit in a burst once per output period instead of emitting its spikes up
+    /// to its pixel's next event at once (slower; for comparison).
+    #[arg(long)]
+    pub no_read_ahead: bool,
 }
 
 impl RunFlags {
@@ -98,6 +104,7 @@ impl RunFlags {
             rate_hz: self.rate_hz,
             tau_a_ms: self.tau_a_ms,
             unit_pool: self.unit_pool,
+            read_ahead: !self.no_read_ahead,
         }
     }
 }
