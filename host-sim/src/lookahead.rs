@@ -16,27 +16,28 @@ use crate::formats::Event64;
 /// reach on the host (62 output periods at 1 kHz).
 pub const LOOKAHEAD_US: u64 = 254_000;
 
-/// No event of the pixel buffered.
-const NONE: u64 = u64::MAX;
+/// No event of the pixel buffered (in [`Lookahead::last`]).
+const NONE: u32 = u32::MAX;
 
-/// What is known of the next event at a buffered event's pixel, on the recording's clock.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Next {
-    /// Not read yet.
-    Unknown,
-    /// At this time, with no event between the two later than it.
-    At(u64),
-    /// At this time, after some later event (the stream went back in time in between).
-    After(u64),
-}
+/// [`Lookahead::next`] of an event whose pixel has no later event read yet.
+const UNKNOWN: u64 = u64::MAX;
+
+/// In [`Lookahead::next`]: the pixel's next event comes after a later event (the stream went
+/// back in time in between), so it is only a bound.
+const AFTER: u64 = 1 << 63;
 
 /// The read-ahead buffer of one piece of a recording (see the module docs).
 pub struct Lookahead {
     width: usize,
     height: usize,
-    /// Per pixel, the stream index of its latest buffered event (or [`NONE`]).
-    last: Vec<u64>,
-    buf: VecDeque<(Event64, Next)>,
+    /// Per pixel, the stream index (its low 32 bits) of its latest buffered event, or
+    /// [`NONE`]: an entry is cleared when its event leaves the buffer, so every index held is
+    /// within the buffer (4 bytes a pixel, to keep the table in cache).
+    last: Vec<u32>,
+    /// The buffered events, in stream order.
+    buf: VecDeque<Event64>,
+    /// Beside each, the time of its pixel's next event (or [`UNKNOWN`], with [`AFTER`]).
+    next: VecDeque<u64>,
     /// Stream index of the front of `buf`.
     front_index: u64,
     /// Latest event time read.
@@ -52,62 +53,88 @@ impl Lookahead {
             height,
             last: vec![NONE; width * height],
             buf: VecDeque::new(),
+            next: VecDeque::new(),
             front_index: 0,
             latest: 0,
         }
     }
 
+    /// The index of pixel `(x, y)` in [`Lookahead::last`], if it is on the sensor.
+    #[inline]
+    fn pixel(&self, x: u16, y: u16) -> Option<usize> {
+        let (x, y) = (usize::from(x), usize::from(y));
+        (x < self.width && y < self.height).then_some(y * self.width + x)
+    }
+
+    /// Asks for the table entry of pixel `(x, y)` to be brought into the cache: an event a few
+    /// positions later in the input ([`prefetch`]).
+    #[inline]
+    pub fn prefetch_pixel(&self, x: u16, y: u16) {
+        if let Some(slot) = self.pixel(x, y).and_then(|p| self.last.get(p)) {
+            prefetch(slot);
+        }
+    }
+
     /// Reads event `e` into the buffer.
     pub fn push(&mut self, e: Event64) {
-        let index = self.front_index + self.buf.len() as u64;
-        let (x, y) = (usize::from(e.x), usize::from(e.y));
-        if x < self.width && y < self.height {
-            if let Some(last) = self.last.get_mut(y * self.width + x) {
-                let prev = *last;
-                *last = index;
-                if prev != NONE && prev >= self.front_index {
-                    let ordered = self.latest <= e.t_us;
-                    if let Some((_, next)) = usize::try_from(prev - self.front_index)
-                        .ok()
-                        .and_then(|i| self.buf.get_mut(i))
-                    {
-                        *next = if ordered {
-                            Next::At(e.t_us)
-                        } else {
-                            Next::After(e.t_us)
-                        };
-                    }
+        let len = self.buf.len();
+        let index = (self.front_index + len as u64) as u32;
+        if let Some(slot) = self.pixel(e.x, e.y).and_then(|p| self.last.get_mut(p)) {
+            let prev = core::mem::replace(slot, index);
+            // An index of `NONE` itself (one in 2^32) reads as none: its event then only
+            // misses its next one (a bound instead, as at the end of the buffer).
+            let at = prev.wrapping_sub(self.front_index as u32) as usize;
+            if prev != NONE && at < len {
+                if let Some(next) = self.next.get_mut(at) {
+                    *next = if self.latest <= e.t_us {
+                        e.t_us
+                    } else {
+                        e.t_us | AFTER
+                    };
                 }
             }
         }
-        self.latest = if self.buf.is_empty() {
+        self.latest = if len == 0 {
             e.t_us
         } else {
             self.latest.max(e.t_us)
         };
-        self.buf.push_back((e, Next::Unknown));
+        self.buf.push_back(e);
+        self.next.push_back(UNKNOWN);
     }
 
     /// The pixel of the `k`-th buffered event after the front.
     pub fn peek(&self, k: usize) -> Option<(u16, u16)> {
-        self.buf.get(k).map(|(e, _)| (e.x, e.y))
+        self.buf.get(k).map(|e| (e.x, e.y))
     }
 
     /// The front event, once the buffer has read [`LOOKAHEAD_US`] beyond it (or always, with
     /// `all`: the end of the piece), with its pixel's next event on the clock of a piece
     /// starting at `t0`.
     pub fn pop(&mut self, t0: u64, all: bool) -> Option<(Event64, NextInput)> {
-        let &(e, _) = self.buf.front()?;
+        let &e = self.buf.front()?;
         if !all && e.t_us.saturating_add(LOOKAHEAD_US) > self.latest {
             return None;
         }
-        let (e, next) = self.buf.pop_front()?;
+        self.buf.pop_front();
+        let next = self.next.pop_front().unwrap_or(UNKNOWN);
+        if next == UNKNOWN {
+            // Still its pixel's latest event: the pixel has none buffered any more.
+            let index = self.front_index as u32;
+            if let Some(slot) = self.pixel(e.x, e.y).and_then(|p| self.last.get_mut(p)) {
+                if *slot == index {
+                    *slot = NONE;
+                }
+            }
+        }
         self.front_index += 1;
         let clock = |t: u64| t.wrapping_sub(t0) as u32;
-        let next = match next {
-            Next::At(t) => NextInput::At(clock(t)),
-            Next::After(t) => NextInput::NotBefore(clock(t)),
-            Next::Unknown => NextInput::NotBefore(clock(self.latest)),
+        let next = if next == UNKNOWN {
+            NextInput::NotBefore(clock(self.latest))
+        } else if next & AFTER != 0 {
+            NextInput::NotBefore(clock(next & !AFTER))
+        } else {
+            NextInput::At(clock(next))
         };
         Some((e, next))
     }
@@ -174,6 +201,54 @@ mod tests {
             Some((ev(300_000, 2), NextInput::NotBefore(260_000)))
         );
         assert_eq!(la.pop(0, true), None);
+    }
+
+    /// Against a brute-force search over the whole stream: random events on a few pixels, out
+    /// of order at times, pushed and popped interleaved, the buffer emptied twice.
+    #[test]
+    fn next_inputs_match_a_search_of_the_stream() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut rand = |n: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % n
+        };
+        let mut t = 0u64;
+        let stream: Vec<Event64> = (0..20_000)
+            .map(|_| {
+                t += rand(40_000);
+                let back = if rand(10) == 0 { rand(30_000) } else { 0 };
+                ev(t.saturating_sub(back), rand(6) as u16)
+            })
+            .collect();
+        let mut la = Lookahead::new(5, 1);
+        let (mut pushed, mut popped) = (0usize, 0usize);
+        let mut check = |la: &mut Lookahead, all: bool, pushed: usize, popped: &mut usize| {
+            while let Some((e, next)) = la.pop(0, all) {
+                let i = *popped;
+                assert_eq!(e, stream[i]);
+                let later = (i + 1..pushed).find(|&j| stream[j].x == e.x && e.x < 5);
+                let latest = stream[..pushed].iter().map(|e| e.t_us).max().unwrap_or(0);
+                let want = match later {
+                    Some(j) if stream[..j].iter().all(|p| p.t_us <= stream[j].t_us) => {
+                        NextInput::At(stream[j].t_us as u32)
+                    }
+                    Some(j) => NextInput::NotBefore(stream[j].t_us as u32),
+                    None => NextInput::NotBefore(latest as u32),
+                };
+                assert_eq!(next, want, "event {i}");
+                *popped += 1;
+            }
+        };
+        for (k, &e) in stream.iter().enumerate() {
+            la.push(e);
+            pushed += 1;
+            let all = k == 7_000 || k == 13_000;
+            check(&mut la, all, pushed, &mut popped);
+        }
+        check(&mut la, true, pushed, &mut popped);
+        assert_eq!(popped, stream.len());
     }
 
     #[test]

@@ -714,7 +714,10 @@ fn feed(
         }
         match ahead.as_deref_mut() {
             Some(la) => {
-                for e in slice {
+                for (i, e) in slice.iter().enumerate() {
+                    if let Some(later) = slice.get(i + PREFETCH_DISTANCE) {
+                        la.prefetch_pixel(later.x, later.y);
+                    }
                     la.push(*e);
                     while let Some((e, next)) = la.pop(t0, false) {
                         if let Some((c, u)) = la
