@@ -224,7 +224,7 @@ mod tests {
             .collect();
         let mut la = Lookahead::new(5, 1);
         let (mut pushed, mut popped) = (0usize, 0usize);
-        let mut check = |la: &mut Lookahead, all: bool, pushed: usize, popped: &mut usize| {
+        let check = |la: &mut Lookahead, all: bool, pushed: usize, popped: &mut usize| {
             while let Some((e, next)) = la.pop(0, all) {
                 let i = *popped;
                 assert_eq!(e, stream[i]);
