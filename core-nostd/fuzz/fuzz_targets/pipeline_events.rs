@@ -1,12 +1,13 @@
 //! The network (its units per cell and in a unit pool) and the three readouts on arbitrary events: coordinates out of range, time going
-//! backwards, equal timestamps, huge bursts at one pixel, the u32 clock wrapping. No panic, and
-//! the calibrated output is a finite rate within the histograms' range.
+//! backwards, equal timestamps, huge bursts at one pixel, the u32 clock wrapping. No panic, the
+//! calibrated output is a finite rate within the histograms' range, and the normalized readout
+//! gives the same samples and spike count with its input read ahead as without.
 #![no_main]
 
 use core_nostd::event::Event;
 use core_nostd::fixed::types::U16F16;
 use core_nostd::layout::{Dense, Layout};
-use core_nostd::network::{active_words, Cell, InputFilter, NetState, Network, UnitPair};
+use core_nostd::network::{active_words, Cell, InputFilter, NetState, Network, NextInput, UnitPair};
 use core_nostd::pipeline::Pipeline;
 use core_nostd::readout::spikes::SpikeCell;
 use core_nostd::settings::{LayoutChoice, ReadoutChoice, Settings};
@@ -31,6 +32,30 @@ fn events(data: &[u8]) -> impl Iterator<Item = Event> + '_ {
             on: b[6] & 1 == 1,
         }
     })
+}
+
+/// Each event with what a reader of the whole input knows of the next event at its pixel:
+/// `At` where no event in between is later (wrapping), else a bound.
+fn read_ahead(evs: &[Event]) -> Vec<(Event, NextInput)> {
+    let last = evs.last().map_or(0, |e| e.t_us);
+    evs.iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let later = evs[i + 1..].iter().position(|f| (f.x, f.y) == (e.x, e.y));
+            let next = match later.map(|k| i + 1 + k) {
+                Some(j) => {
+                    let t = evs[j].t_us;
+                    if evs[..j].iter().all(|f| (f.t_us.wrapping_sub(t) as i32) <= 0) {
+                        NextInput::At(t)
+                    } else {
+                        NextInput::NotBefore(t)
+                    }
+                }
+                None => NextInput::NotBefore(last),
+            };
+            (*e, next)
+        })
+        .collect()
 }
 
 /// The product's pipeline with `layout` on a 64 x 24 (or 240 x 30) sensor, f = 60 px.
@@ -76,9 +101,33 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     let mut p = Pipeline::new(net, Normalized::new(10_000, 1_000), 1_000);
+    let mut live = Vec::new();
+    let mut last = 0;
     for ev in events(data) {
-        p.event(ev, &mut |_| {});
+        last = ev.t_us;
+        p.event(ev, &mut |s| live.push(s));
     }
+    p.finish(last, &mut |s| live.push(s));
+    let live_spikes = p.spike_count();
+    drop(p);
+    // The same events read ahead (`Network::event_in_ahead`): the same samples and spikes.
+    let (mut cells, mut units, mut active) = (
+        vec![Cell::default(); n],
+        vec![UnitPair::default(); n],
+        vec![0u32; active_words(n)],
+    );
+    let state = NetState::spiking(&mut cells, &mut units, &mut active);
+    let Ok(net) = Network::new(&k, layout, state, InputFilter::All) else {
+        return;
+    };
+    let mut p = Pipeline::new(net, Normalized::new(10_000, 1_000), 1_000);
+    let mut ahead = Vec::new();
+    for (ev, next) in read_ahead(&events(data).collect::<Vec<_>>()) {
+        p.event_ahead(ev, next, &mut |s| ahead.push(s));
+    }
+    p.finish(last, &mut |s| ahead.push(s));
+    assert_eq!(p.spike_count(), live_spikes);
+    assert_eq!(ahead, live);
     // The spike readout over a unit pool of 16 pairs (full most of the time).
     let settings = Settings {
         readout: ReadoutChoice::Spikes,
