@@ -4,7 +4,8 @@
 //!
 //! A live sensor cannot do this; a recording can. The events come out in stream order, each
 //! [`LOOKAHEAD_US`] after it on the stream's clock (or at the end of the piece), so the
-//! buffer holds about that much of the recording (~40 k events for a busy DAVIS346 scene).
+//! buffer holds about that much of the recording (~165 k events, 24 bytes each, on dev03, a
+//! busy DAVIS346 scene at 0.65 M events/s).
 
 use std::collections::VecDeque;
 
@@ -13,7 +14,9 @@ use core_nostd::network::NextInput;
 use crate::formats::Event64;
 
 /// How far ahead of the event it hands on the buffer reads (µs): the normalized readout's
-/// reach on the host (62 output periods at 1 kHz).
+/// reach on the host at its default 1 kHz (`NetSink::reach_us`, 254 output periods). At lower
+/// output rates the readout reaches further and its units emit up to here at most; at higher
+/// ones they emit as far as it reaches and the tick visits the rest.
 pub const LOOKAHEAD_US: u64 = 254_000;
 
 /// No event of the pixel buffered (in [`Lookahead::last`]).

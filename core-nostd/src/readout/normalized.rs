@@ -22,8 +22,9 @@
 //! its own output time; a spike an input takes back ([`NetSink::retract`]) leaves its bin again.
 //! An output adds only its own bin: it counts exactly the spikes up to its time. Outputs must
 //! come once per period (as [`crate::pipeline::Pipeline`] calls them). A caller that reads its
-//! recording ahead ([`crate::network::Network::event_in_ahead`]) has units emit up to 62 output
-//! periods ahead ([`NetSink::reach_us`]; on the host), the same spikes into the same bins.
+//! recording ahead ([`crate::network::Network::event_in_ahead`]) has units emit up to 254
+//! output periods ahead ([`NetSink::reach_us`]; on the host), the same spikes into the same
+//! bins.
 
 use fixed::types::I16F16;
 
@@ -37,8 +38,8 @@ use crate::unit::elapsed_us;
 const FRAC: u32 = 24;
 
 /// Output periods the readout holds spikes for (the current one and those ahead): on the
-/// host also those a recording read ahead emits at once ([`NetSink::reach_us`]: 62 periods, 62
-/// ms at 1 kHz, longer than most bursts).
+/// host also those a recording read ahead emits at once ([`NetSink::reach_us`]: 254 periods,
+/// 254 ms at 1 kHz, longer than nearly every burst).
 #[cfg(not(target_os = "none"))]
 const RING: usize = 256;
 
@@ -176,13 +177,10 @@ impl NetSink for Normalized {
     }
 
     fn ahead_us(&self) -> u32 {
-        if self.started {
-            AHEAD_MAX_US.min(self.period_us.saturating_mul(RING as u32 - 2))
-        } else {
-            0
-        }
+        AHEAD_MAX_US.min(self.reach_us())
     }
 
+    /// `RING - 2` output periods (the ring's last bin holds nothing beyond), once started.
     fn reach_us(&self) -> u32 {
         if self.started {
             self.period_us.saturating_mul(RING as u32 - 2)
