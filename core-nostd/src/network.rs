@@ -918,8 +918,8 @@ impl<'a, L: Layout> Network<'a, L> {
     /// event) at once, and a unit whose cell's next event is known ([`NextInput::At`]) is left
     /// out of [`Network::tick`]'s visits until that event. The spikes are the same as
     /// without, each in its own output period; only the visits to units in a burst go (one
-    /// per output period and unit in a dense burst, without). Spiking, unpooled networks with
-    /// a sink that takes every spike; others do just [`Network::event_in`].
+    /// per output period and unit in a dense burst, without). Where it
+    /// [reads ahead](Network::reads_ahead); elsewhere it is just [`Network::event_in`].
     pub fn event_in_ahead<S: NetSink>(
         &mut self,
         ev: Event,
@@ -928,10 +928,17 @@ impl<'a, L: Layout> Network<'a, L> {
         sink: &mut S,
     ) -> bool {
         let passed = self.event_in(ev, c, sink);
-        if self.spiking::<S>() && !S::SPARSE && self.pool.is_none() {
+        if self.reads_ahead::<S>() {
             self.emit_ahead(c, ev.t_us, next, sink);
         }
         passed
+    }
+
+    /// Whether [`Network::event_in_ahead`] has units emit ahead with sink `S` (else it is
+    /// [`Network::event_in`]): a spiking, unpooled network whose sink takes every spike. A
+    /// caller reads its input ahead only for such a network.
+    pub fn reads_ahead<S: NetSink>(&self) -> bool {
+        self.spiking::<S>() && !S::SPARSE && self.pool.is_none()
     }
 
     /// The units of cell `c` (unpooled: slot `c`), after an event at `t`, emit their spikes up

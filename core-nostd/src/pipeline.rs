@@ -162,6 +162,12 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         }
     }
 
+    /// Whether [`Pipeline::event_ahead`] has the main network's units emit ahead
+    /// ([`Network::reads_ahead`]): whether reading the input ahead serves this pipeline.
+    pub fn reads_ahead(&self) -> bool {
+        self.net.reads_ahead::<R>()
+    }
+
     /// The main network's state an event at `(x, y)` will touch first
     /// ([`Network::state_at`]).
     pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {

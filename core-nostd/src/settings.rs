@@ -582,6 +582,11 @@ impl<'a, R: Readout> OnLayout<'a, R> {
         each_layout_pipeline!(self, p => p.state_at(x, y))
     }
 
+    /// Whether reading the input ahead serves this pipeline (see [`Pipeline::reads_ahead`]).
+    pub fn reads_ahead(&self) -> bool {
+        each_layout_pipeline!(self, p => p.reads_ahead())
+    }
+
     /// Moves the clock to `now_us` without an event (see [`Pipeline::poll`]).
     pub fn poll<F: FnMut(YawSample)>(&mut self, now_us: u32, out: &mut F) {
         each_layout_pipeline!(self, p => p.poll(now_us, out));
@@ -673,6 +678,11 @@ impl Built<'_> {
     /// The state an event at `(x, y)` will touch first (see [`Pipeline::state_at`]).
     pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {
         each_pipeline!(self, p => p.state_at(x, y))
+    }
+
+    /// Whether reading the input ahead serves this pipeline (see [`Pipeline::reads_ahead`]).
+    pub fn reads_ahead(&self) -> bool {
+        each_pipeline!(self, p => p.reads_ahead())
     }
 
     /// Moves the clock to `now_us` without an event (see [`Pipeline::poll`]).

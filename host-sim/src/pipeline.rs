@@ -408,13 +408,13 @@ pub fn run_stream(
     let mut pieces = Pieces::new(source);
     let start = Instant::now();
     let mut out = match opts.model {
-        Model::Fixed => {
-            // Reading ahead serves only the normalized readout's dense, unpooled network.
-            let ahead =
-                (opts.read_ahead && is_normalized(&settings) && settings.unit_pool.is_none())
-                    .then(|| Lookahead::new(settings.width, settings.height));
-            fixed(&settings, &Kernel::DEFAULT, &mut pieces, samples, ahead)?
-        }
+        Model::Fixed => fixed(
+            &settings,
+            &Kernel::DEFAULT,
+            &mut pieces,
+            samples,
+            opts.read_ahead,
+        )?,
         Model::Float => float(&settings, &camera, &mut pieces, samples)?,
     };
     if pieces.events == 0 {
@@ -465,8 +465,10 @@ fn fixed(
     kernel: &Kernel,
     pieces: &mut Pieces<'_>,
     mut samples: Samples,
-    mut ahead: Option<Lookahead>,
+    read_ahead: bool,
 ) -> Result<RunOutput> {
+    // The read-ahead buffer, for pipelines it serves (`Built::reads_ahead`).
+    let mut ahead: Option<Lookahead> = None;
     let needs = settings.storage().map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut cells = vec![Cell::default(); needs.cells];
     let mut units = vec![UnitPair::default(); needs.unit_pairs];
@@ -485,6 +487,9 @@ fn fixed(
         let mut p = settings
             .build_with(kernel, state, &mut spike_cells)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
+        if read_ahead && ahead.is_none() && p.reads_ahead() {
+            ahead = Some(Lookahead::new(settings.width, settings.height));
+        }
         feed(
             &mut p,
             first,
@@ -719,18 +724,7 @@ fn feed(
                         la.prefetch_pixel(later.x, later.y);
                     }
                     la.push(*e);
-                    while let Some((e, next)) = la.pop(t0, false) {
-                        if let Some((c, u)) = la
-                            .peek(PREFETCH_DISTANCE)
-                            .and_then(|(x, y)| p.state_at(x, y))
-                        {
-                            prefetch(c);
-                            if let Some(u) = u {
-                                prefetch(u);
-                            }
-                        }
-                        last = step(p, &e, Some(next), t0, period_us, &mut k, &mut out);
-                    }
+                    last = drain(p, la, false, t0, period_us, &mut k, &mut out).unwrap_or(last);
                     out.flush_if_full()?;
                 }
             }
@@ -744,10 +738,7 @@ fn feed(
         bar.set_position(pieces.events);
     }
     if let Some(la) = ahead {
-        while let Some((e, next)) = la.pop(t0, true) {
-            last = step(p, &e, Some(next), t0, period_us, &mut k, &mut out);
-            out.flush_if_full()?;
-        }
+        last = drain(p, la, true, t0, period_us, &mut k, &mut out).unwrap_or(last);
     }
     p.finish(last, &mut |s: YawSample| {
         k += 1;
@@ -761,6 +752,34 @@ fn feed(
     out.flush()?;
     bar.finish_and_clear();
     Ok(())
+}
+
+/// Feeds the events the read-ahead buffer hands on (all of them with `all`: the end of the
+/// piece), each with its pixel's next event, the state of the one [`PREFETCH_DISTANCE`] later
+/// asked into the cache first; returns the last one's time on the pipeline's clock.
+fn drain(
+    p: &mut Built<'_>,
+    la: &mut Lookahead,
+    all: bool,
+    t0: u64,
+    period_us: u32,
+    k: &mut u64,
+    out: &mut PieceOut<'_>,
+) -> Option<u32> {
+    let mut last = None;
+    while let Some((e, next)) = la.pop(t0, all) {
+        if let Some((cell, units)) = la
+            .peek(PREFETCH_DISTANCE)
+            .and_then(|(x, y)| p.state_at(x, y))
+        {
+            prefetch(cell);
+            if let Some(u) = units {
+                prefetch(u);
+            }
+        }
+        last = Some(step(p, &e, Some(next), t0, period_us, k, out));
+    }
+    last
 }
 
 /// Feeds one event of a piece starting at `t0` (µs) to the pipeline (with what is known of its
