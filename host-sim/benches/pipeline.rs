@@ -5,22 +5,15 @@
 //! events, about 129 M spikes), when that folder is there.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use host_sim::formats::{self, Format, Recording};
+use host_sim::formats::{self, Recording};
 use host_sim::pipeline::{run_pipeline, ReadoutKind, RunOptions};
 use host_sim::synth::{self, SynthConfig};
 use host_sim::testdata::DATA_ENV;
 
 fn recording() -> Recording {
-    let seq = synth::generate(&SynthConfig::default()).expect("synthetic scene");
-    let i = seq.intrinsics;
-    Recording {
-        events: seq.events,
-        width: Some(i.width),
-        height: Some(i.height),
-        intrinsics: Some(formats::Intrinsics::from(i)),
-        gyro: None,
-        format: Format::Csv,
-    }
+    synth::generate(&SynthConfig::default())
+        .expect("synthetic scene")
+        .into_recording()
 }
 
 fn args(readout: ReadoutKind) -> RunOptions {

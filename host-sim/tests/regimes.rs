@@ -24,7 +24,7 @@
 
 use host_sim::eval::metrics::{pearson, resample, rmse, Resample};
 use host_sim::eval::Series;
-use host_sim::formats::{self, Format, Recording};
+use host_sim::formats::{self, Recording};
 use host_sim::pipeline::{run_pipeline, ReadoutKind, RunOptions};
 use host_sim::synth::regime::{preset, Regime};
 use host_sim::synth::truth::GtRow;
@@ -84,20 +84,8 @@ fn render(
     let mut cfg = preset(regime, seed, duration_s, Preset::Davis346);
     adjust(&mut cfg);
     let seq = generate(&cfg).expect("render");
-    let rec = Recording {
-        events: seq.events.clone(),
-        width: Some(seq.intrinsics.width),
-        height: Some(seq.intrinsics.height),
-        intrinsics: Some(formats::Intrinsics {
-            fx: seq.intrinsics.fx,
-            fy: seq.intrinsics.fy,
-            cx: seq.intrinsics.cx,
-            cy: seq.intrinsics.cy,
-        }),
-        gyro: None,
-        format: Format::Csv,
-    };
-    (rec, seq.gt)
+    let gt = seq.gt.clone();
+    (seq.into_recording(), gt)
 }
 
 /// The figures of a run's `(t_s, value, flags)` samples against the ground truth.

@@ -2,7 +2,6 @@
 //! oracle network (the paper's method) on a small generated scene.
 
 use host_sim::eval::metrics::pearson;
-use host_sim::formats::{self, Format, Recording};
 use host_sim::pipeline::{run_pipeline, Model, ReadoutKind, RunOptions};
 use host_sim::synth::{self, Intrinsics, MotionSpec, SynthConfig};
 
@@ -23,14 +22,7 @@ fn fixed_normalized_readout_follows_the_float_oracle_network() {
     };
     let seq = synth::generate(&cfg).expect("scene");
     assert!(seq.events.len() > 5_000, "{} events", seq.events.len());
-    let rec = Recording {
-        events: seq.events,
-        width: Some(64),
-        height: Some(24),
-        intrinsics: Some(formats::Intrinsics::from(seq.intrinsics)),
-        gyro: None,
-        format: Format::Csv,
-    };
+    let rec = seq.into_recording();
     let args = |model| RunOptions {
         readout: ReadoutKind::Normalized,
         model,

@@ -8,7 +8,6 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 
 use crate::eval::{self, EstimateKind, EvalOptions, Series};
-use crate::formats::{self, Format, Recording};
 use crate::output::StagedDir;
 use crate::pipeline::{run_pipeline, write_yaw_csv, RunOptions};
 use crate::synth::{self, SynthConfig};
@@ -43,17 +42,9 @@ pub fn run(args: Args) -> Result<()> {
     );
     let seq = synth::generate(&cfg)?;
     synth::write_sequence(&seq, dir)?;
-    let i = seq.intrinsics;
     let gt = Series::from_pairs(&seq.gt_yaw_rate());
     let gyro = Series::from_pairs(&seq.gyro_yaw_rate());
-    let rec = Recording {
-        events: seq.events,
-        width: Some(i.width),
-        height: Some(i.height),
-        intrinsics: Some(formats::Intrinsics::from(i)),
-        gyro: None,
-        format: Format::EcdText,
-    };
+    let rec = seq.into_recording();
     let yaw_csv = args.out.join("yaw.csv");
     let out = run_pipeline(&RunOptions::default(), &rec)?;
     write_yaw_csv(&dir.join("yaw.csv"), &out.samples, false)?;

@@ -347,6 +347,21 @@ impl Sequence {
     pub fn gyro_yaw_rate(&self) -> Vec<(f64, f64)> {
         self.imu.iter().map(|r| (r.t_s, r.gyro[1])).collect()
     }
+
+    /// Its events as a recording in memory, with the sensor's size and intrinsics (the
+    /// format of the `events.txt` that [`write_sequence`] writes), for the pipeline without a
+    /// file.
+    pub fn into_recording(self) -> crate::formats::Recording {
+        let i = self.intrinsics;
+        crate::formats::Recording {
+            events: self.events,
+            width: Some(i.width),
+            height: Some(i.height),
+            intrinsics: Some(crate::formats::Intrinsics::from(i)),
+            gyro: None,
+            format: crate::formats::Format::EcdText,
+        }
+    }
 }
 
 /// Generates the sequence described by `cfg`.
