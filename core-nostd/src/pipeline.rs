@@ -147,6 +147,7 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
         // One layout: the side networks' cell is the main one's, and an event outside it is
         // counted by the main network alone.
         if let Some(c) = self.net.locate(ev) {
+            // Without `AHEAD` the next input is not read.
             self.event_at::<false>(ev, c, NextInput::NotBefore(ev.t_us));
         }
     }
