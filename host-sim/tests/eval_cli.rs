@@ -285,3 +285,32 @@ fn eval_reads_the_flags() {
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert!(v["flags"].is_null(), "{}", v["flags"]);
 }
+
+#[test]
+fn a_static_truth_says_which_figures_it_has_no_value_for() {
+    // A static camera's ground truth and an estimate flagged "no evidence" throughout: the
+    // figures relative to the peak and to turning samples have no value, and say why.
+    let dir = tempfile::tempdir().unwrap();
+    let gt = dir.path().join("gt.csv");
+    let yaw = dir.path().join("yaw.csv");
+    let mut truth = String::from("t_s,yaw_rate\n");
+    let mut estimate = String::from("t_s,yaw_rate_rad_s,flags\n");
+    for k in 0..200 {
+        let t = f64::from(k) * 1e-3;
+        truth.push_str(&format!("{t},0\n"));
+        estimate.push_str(&format!("{t},0,2\n"));
+    }
+    std::fs::write(&gt, truth).unwrap();
+    std::fs::write(&yaw, estimate).unwrap();
+    let out = run_ok(
+        host_sim()
+            .args(["eval", "--yaw"])
+            .arg(&yaw)
+            .arg("--gt")
+            .arg(&gt),
+    );
+    assert!(!out.contains("NaN"), "{out}");
+    assert!(out.contains("the truth is 0 throughout"), "{out}");
+    assert!(out.contains("|gt| never reaches 0.05 rad/s"), "{out}");
+    assert!(out.contains("100.0 % of the grid"), "{out}");
+}

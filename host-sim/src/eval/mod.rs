@@ -635,10 +635,22 @@ impl Report {
             row("RMSE", format!("{:.4} rad/s", m.rmse_rad_s), true);
             row(
                 "RMSE / peak",
-                format!("{:.1} %", 100.0 * m.rmse_rel_peak),
+                if m.rmse_rel_peak.is_finite() {
+                    format!("{:.1} %", 100.0 * m.rmse_rel_peak)
+                } else {
+                    "- (the truth is 0 throughout)".to_string()
+                },
                 true,
             );
-            row("correlation", format!("{:.4}", m.correlation), false);
+            row(
+                "correlation",
+                if m.correlation.is_finite() {
+                    format!("{:.4}", m.correlation)
+                } else {
+                    "- (the truth or the estimate is constant)".to_string()
+                },
+                false,
+            );
             row(
                 "mean error",
                 format!("{:+.4} rad/s", m.mean_error_rad_s),
@@ -666,12 +678,19 @@ impl Report {
             block("gyro", g);
         }
         if let Some(f) = &self.flags {
+            let while_turning = if f.no_evidence_while_turning.is_finite() {
+                format!(
+                    "{:.1} % while |gt| >= {TURNING_RAD_S} rad/s",
+                    100.0 * f.no_evidence_while_turning
+                )
+            } else {
+                format!("|gt| never reaches {TURNING_RAD_S} rad/s")
+            };
             let _ = writeln!(
                 s,
-                "estimate flags (values above are as output, flagged or not):\n  {:<21}{:.1} % of the grid, {:.1} % while |gt| >= {TURNING_RAD_S} rad/s\n  {:<21}{:.4} rad/s (no-evidence samples as 0)",
+                "estimate flags (values above are as output, flagged or not):\n  {:<21}{:.1} % of the grid, {while_turning}\n  {:<21}{:.4} rad/s (no-evidence samples as 0)",
                 "no evidence",
                 100.0 * f.no_evidence_share,
-                100.0 * f.no_evidence_while_turning,
                 "RMS output",
                 f.rms_answered_rad_s
             );
