@@ -123,23 +123,9 @@ impl Normalized {
     /// Adds `sign ·` the weight of a spike at `t_us` to its output's bin.
     #[inline]
     fn add(&mut self, t_us: u32, negative: bool) {
-        let (i, end) = self.bin_of(t_us);
-        let w = self.weight(end.wrapping_sub(t_us));
-        if let Some(b) = self.bins.get_mut(i) {
-            if negative {
-                *b -= w;
-            } else {
-                *b += w;
-            }
-        }
-    }
-
-    /// The output bin of a spike at `t_us`: its ring index and the output time it is weighted
-    /// to (see [`Normalized::period_of`]).
-    #[inline]
-    fn bin_of(&self, t_us: u32) -> (usize, u32) {
         let (k, end) = self.period_of(t_us);
-        (self.ring_index(k), end)
+        let w = self.weight(end.wrapping_sub(t_us));
+        self.add_to_bin(k, w, negative);
     }
 
     /// The output period of a spike at `t_us`, counted from the current one (`k`), and the
@@ -163,12 +149,12 @@ impl Normalized {
         (self.head + (k as usize).min(RING - 1)) % RING
     }
 
-    /// Adds `sum` (Q39.24), signed by `dir`, to output period `k`'s bin.
+    /// Adds `sum` (Q39.24), negated if `negative`, to output period `k`'s bin.
     #[inline]
-    fn add_to_bin(&mut self, k: u32, sum: i64, dir: Dir) {
+    fn add_to_bin(&mut self, k: u32, sum: i64, negative: bool) {
         let i = self.ring_index(k);
         if let Some(b) = self.bins.get_mut(i) {
-            if dir == Dir::LeftToRight {
+            if negative {
                 *b -= sum;
             } else {
                 *b += sum;
@@ -253,11 +239,12 @@ impl NetSink for Normalized {
         let Some(&first) = times.first() else {
             return;
         };
+        let negative = dir == Dir::LeftToRight;
         let (mut k, mut end) = self.period_of(first);
         let mut sum = 0i64;
         for &t in times {
             if (end.wrapping_sub(t) as i32) < 0 {
-                self.add_to_bin(k, sum, dir);
+                self.add_to_bin(k, sum, negative);
                 sum = 0;
                 // Mostly the next period; else the division finds it.
                 k += 1;
@@ -268,7 +255,7 @@ impl NetSink for Normalized {
             }
             sum += self.weight(end.wrapping_sub(t));
         }
-        self.add_to_bin(k, sum, dir);
+        self.add_to_bin(k, sum, negative);
     }
 
     #[inline]
