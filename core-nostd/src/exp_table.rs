@@ -93,7 +93,7 @@ impl ExpDecay {
     }
 
     /// One table, for error measurement: entry `i` approximates `e^(-i·step/tau)`.
-    pub fn table(&self, part: Part) -> (&[u32; 256], u32) {
+    pub const fn table(&self, part: Part) -> (&[u32; 256], u32) {
         match part {
             Part::Lo => (&self.lo, 1),
             Part::Mid => (&self.mid, 1 << 8),

@@ -32,6 +32,7 @@ use super::Readout;
 use crate::exp_table::{ExpDecay, Part};
 use crate::layout::Dir;
 use crate::network::{NetSink, Spike};
+use crate::settings::NORMALIZED_TAU_A_US;
 use crate::unit::elapsed_us;
 
 /// Fractional bits of the integrator.
@@ -47,16 +48,30 @@ const RING: usize = 256;
 #[cfg(target_os = "none")]
 const RING: usize = 16;
 
-/// Spike-to-output distances (µs) whose weight is kept in one table of its own, on the host:
-/// those of a spike in its own output period at 1 kHz (a look-up in place of two and a
-/// product, the same bits).
-#[cfg(not(target_os = "none"))]
+/// Spike-to-output distances (µs) whose weight at the default `tau_A` comes from a table of
+/// its own ([`DEFAULT_NEAR`]): those of a spike in its own output period at 1 kHz.
 const NEAR: usize = 1_024;
 
-/// Spike-to-output distances (µs) whose weight is kept in a table of its own: none on the MCU
-/// (4 kB of RAM).
-#[cfg(target_os = "none")]
-const NEAR: usize = 0;
+/// `e^(-d/tau_A)` (Q24) for `d` < [`NEAR`] µs at the default `tau_A`
+/// ([`NORMALIZED_TAU_A_US`]), computed at compile time (in flash on the MCU): one look-up in
+/// place of two and a product, the same bits as [`weight_from_tables`] (tested).
+static DEFAULT_NEAR: [u32; NEAR] = near_weights(&ExpDecay::new(NORMALIZED_TAU_A_US));
+
+/// [`weight_from_tables`] for `d` < [`NEAR`], at compile time.
+// Compile-time only; `d < NEAR` (1 024) bounds the indices: `d & 0xFF` < 256, `d >> 8` < 4
+// (`get` is not usable in const fn here).
+#[allow(clippy::indexing_slicing)]
+const fn near_weights(decay: &ExpDecay) -> [u32; NEAR] {
+    let (lo, _) = decay.table(Part::Lo);
+    let (mid, _) = decay.table(Part::Mid);
+    let mut out = [0u32; NEAR];
+    let mut d = 0;
+    while d < NEAR {
+        out[d] = ((lo[d & 0xFF] as u64 * mid[d >> 8] as u64) >> (62 - FRAC)) as u32;
+        d += 1;
+    }
+    out
+}
 
 /// How far ahead of the clock (µs) the readout takes spikes, at most. The spikes that count
 /// are the same for any horizon (tested); the horizon trades visits to units in a burst (a unit
@@ -80,8 +95,9 @@ pub const AHEAD_MAX_US: u32 = 2_000;
 /// Leaky integrator of spikes, in units of spikes (Q39.24).
 pub struct Normalized {
     decay: ExpDecay,
-    /// `near[d]` = [`Normalized::weight`]`(d)`, Q24.
-    near: [u32; NEAR],
+    /// `near[d]` = [`weight_from_tables`]`(d)`, Q24: [`DEFAULT_NEAR`] at the default
+    /// `tau_A`, else empty.
+    near: &'static [u32],
     /// `A` at `t_last`, Q39.24.
     a: i64,
     t_last: u32,
@@ -102,10 +118,11 @@ impl Normalized {
     pub fn new(tau_a_us: u32, period_us: u32) -> Self {
         let period_us = period_us.max(1);
         let decay = ExpDecay::new(tau_a_us);
-        let mut near = [0; NEAR];
-        for (d, w) in (0u32..).zip(near.iter_mut()) {
-            *w = weight_from_tables(&decay, d) as u32;
-        }
+        let near: &'static [u32] = if decay.tau_us() == NORMALIZED_TAU_A_US {
+            &DEFAULT_NEAR
+        } else {
+            &[]
+        };
         Self {
             decay,
             near,
@@ -343,6 +360,16 @@ mod tests {
                 single.output(5_000 + k * 1_000)
             );
         }
+    }
+
+    #[test]
+    fn the_default_near_table_holds_the_weights_of_the_decay_tables() {
+        let decay = ExpDecay::new(NORMALIZED_TAU_A_US);
+        for (d, &w) in (0u32..).zip(DEFAULT_NEAR.iter()) {
+            assert_eq!(i64::from(w), weight_from_tables(&decay, d), "d {d}");
+        }
+        assert_eq!(Normalized::new(NORMALIZED_TAU_A_US, 1_000).near.len(), NEAR);
+        assert!(Normalized::new(20_000, 1_000).near.is_empty());
     }
 
     #[test]
