@@ -67,7 +67,7 @@ const fn near_weights(decay: &ExpDecay) -> [u32; NEAR] {
     let mut out = [0u32; NEAR];
     let mut d = 0;
     while d < NEAR {
-        out[d] = ((lo[d & 0xFF] as u64 * mid[d >> 8] as u64) >> (62 - FRAC)) as u32;
+        out[d] = lo_mid_weight(lo[d & 0xFF], mid[d >> 8]) as u32;
         d += 1;
     }
     out
@@ -205,12 +205,19 @@ fn weight_from_tables(decay: &ExpDecay, d: u32) -> i64 {
     if d < 1 << 16 {
         let (lo, _) = decay.table(Part::Lo);
         let (mid, _) = decay.table(Part::Mid);
-        let l = u64::from(lo.get((d & 0xFF) as usize).copied().unwrap_or(0));
-        let m = u64::from(mid.get((d >> 8) as usize).copied().unwrap_or(0));
-        ((l * m) >> (62 - FRAC)) as i64
+        let l = lo.get((d & 0xFF) as usize).copied().unwrap_or(0);
+        let m = mid.get((d >> 8) as usize).copied().unwrap_or(0);
+        lo_mid_weight(l, m)
     } else {
         i64::from(decay.decay_bits(d) >> (31 - FRAC))
     }
+}
+
+/// The product of a low-byte and a mid-byte decay entry (Q1.31 each) as a weight in Q24 (at
+/// most `2^24`).
+#[inline]
+const fn lo_mid_weight(lo: u32, mid: u32) -> i64 {
+    ((lo as u64 * mid as u64) >> (62 - FRAC)) as i64
 }
 
 /// `s = 10 + ceil(log2(tau_a_us / 10_000))`, at least 0: the output unit is `2^s` spikes.
