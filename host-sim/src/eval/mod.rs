@@ -497,6 +497,15 @@ pub struct FlagFigures {
     pub rmse_answered_rel_peak: f64,
 }
 
+/// A figure as `show` writes it, or, where it has no value (NaN: nothing to divide by), why.
+fn shown_or_why(v: f64, show: impl Fn(f64) -> String, why: impl Fn() -> String) -> String {
+    if v.is_finite() {
+        show(v)
+    } else {
+        why()
+    }
+}
+
 /// |yaw rate| (rad/s) from which a grid point counts as turning in [`FlagFigures`].
 pub const TURNING_RAD_S: f64 = 0.05;
 
@@ -635,20 +644,20 @@ impl Report {
             row("RMSE", format!("{:.4} rad/s", m.rmse_rad_s), true);
             row(
                 "RMSE / peak",
-                if m.rmse_rel_peak.is_finite() {
-                    format!("{:.1} %", 100.0 * m.rmse_rel_peak)
-                } else {
-                    "- (the truth is 0 throughout)".to_string()
-                },
+                shown_or_why(
+                    m.rmse_rel_peak,
+                    |v| format!("{:.1} %", 100.0 * v),
+                    || "- (the truth is 0 throughout)".to_string(),
+                ),
                 true,
             );
             row(
                 "correlation",
-                if m.correlation.is_finite() {
-                    format!("{:.4}", m.correlation)
-                } else {
-                    "- (the truth or the estimate is constant)".to_string()
-                },
+                shown_or_why(
+                    m.correlation,
+                    |v| format!("{v:.4}"),
+                    || "- (the truth or the estimate is constant)".to_string(),
+                ),
                 false,
             );
             row(
@@ -678,14 +687,11 @@ impl Report {
             block("gyro", g);
         }
         if let Some(f) = &self.flags {
-            let while_turning = if f.no_evidence_while_turning.is_finite() {
-                format!(
-                    "{:.1} % while |gt| >= {TURNING_RAD_S} rad/s",
-                    100.0 * f.no_evidence_while_turning
-                )
-            } else {
-                format!("|gt| never reaches {TURNING_RAD_S} rad/s")
-            };
+            let while_turning = shown_or_why(
+                f.no_evidence_while_turning,
+                |v| format!("{:.1} % while |gt| >= {TURNING_RAD_S} rad/s", 100.0 * v),
+                || format!("|gt| never reaches {TURNING_RAD_S} rad/s"),
+            );
             let _ = writeln!(
                 s,
                 "estimate flags (values above are as output, flagged or not):\n  {:<21}{:.1} % of the grid, {while_turning}\n  {:<21}{:.4} rad/s (no-evidence samples as 0)",
