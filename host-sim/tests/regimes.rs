@@ -83,8 +83,8 @@ fn render(
 ) -> (Recording, Vec<GtRow>) {
     let mut cfg = preset(regime, seed, duration_s, Preset::Davis346);
     adjust(&mut cfg);
-    let seq = generate(&cfg).expect("render");
-    let gt = seq.gt.clone();
+    let mut seq = generate(&cfg).expect("render");
+    let gt = std::mem::take(&mut seq.gt);
     (seq.into_recording(), gt)
 }
 
