@@ -147,15 +147,22 @@ impl Lookahead {
 /// state an event a few positions later will touch ([`PREFETCH_DISTANCE`]).
 #[inline(always)]
 pub fn prefetch<T>(r: &T) {
+    prefetch_ptr(std::ptr::from_ref(r));
+}
+
+/// [`prefetch`] for an address that need not be valid, such as one past a slice's ends (a
+/// hint: nothing is read).
+#[inline(always)]
+pub fn prefetch_ptr<T>(p: *const T) {
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch is a hint that never faults and reads nothing into the program;
-    // `r` is a valid reference besides.
+    // SAFETY: a prefetch is a hint that never faults, whatever the address, and reads
+    // nothing into the program.
     unsafe {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        _mm_prefetch::<_MM_HINT_T0>(std::ptr::from_ref(r).cast());
+        _mm_prefetch::<_MM_HINT_T0>(p.cast());
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = r;
+    let _ = p;
 }
 
 /// How many events ahead of the one processed the state of one is prefetched: far enough that
