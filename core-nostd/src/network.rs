@@ -523,6 +523,18 @@ fn uncount(stats: &mut NetStats, dir: Dir) {
     }
 }
 
+/// The state an event at one pixel touches first ([`Network::state_at`]), for a caller that
+/// reads its input ahead and asks for it to be brought into the cache early.
+#[derive(Clone, Copy, Debug)]
+pub struct EventState<'a> {
+    /// The cells from its FAC neighbour on the left to the one on the right, at the layout's
+    /// stride (its own cell in the middle; where it has no neighbour, the span ends at its
+    /// own): the event reads their traces. At most `2 · stride + 1` cells, one row.
+    pub cells: &'a [Cell],
+    /// Its unit pair, where the units run.
+    pub units: Option<&'a UnitPair>,
+}
+
 /// The state a network runs in, borrowed from the caller (no heap): one [`Cell`] per cell of
 /// the layout and, when the units run (sinks that want spikes), one [`UnitPair`] per cell (or
 /// per slot of a unit pool, with one owner word each) and [`active_words`] of the pair count.
@@ -753,11 +765,16 @@ impl<'a, L: Layout> Network<'a, L> {
         self.units.get(self.slot(c)?)
     }
 
-    /// The state an event at pixel `(x, y)` will touch first: its cell and its units (where
-    /// they run). For a caller that reads its input ahead and fetches it into the cache early.
-    pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {
+    /// The state an event at pixel `(x, y)` will touch first ([`EventState`]).
+    pub fn state_at(&self, x: u16, y: u16) -> Option<EventState<'_>> {
         let c = self.layout.cell(x, y)?;
-        Some((self.cells.get(c)?, self.units(c)))
+        let s = i32::from(self.stride);
+        let first = self.layout.neighbor(x, y, c, -s).map_or(c, |n| n.min(c));
+        let last = self.layout.neighbor(x, y, c, s).map_or(c, |n| n.max(c));
+        Some(EventState {
+            cells: self.cells.get(first..=last)?,
+            units: self.units(c),
+        })
     }
 
     /// Unit pairs with a spike pending (marked in the active bitset).
@@ -1575,4 +1592,44 @@ fn emit_pair<S: NetSink, T: FnMut(Dir, u32), const CATCH_UP: bool>(
     };
     unit(lr, Dir::LeftToRight);
     unit(rl, Dir::RightToLeft);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout::Dense;
+
+    /// The cells [`Network::state_at`] names are those from the pixel's FAC neighbour on the
+    /// left to the one on the right, at the layout's stride, and its units are its own.
+    #[test]
+    fn an_events_state_spans_its_neighbours_at_the_stride() {
+        let k = Kernel::DEFAULT;
+        let layout = Dense::new(8, 2, 2).unwrap();
+        let n = layout.cell_count();
+        let (mut cells, mut units, mut active) =
+            ([Cell::default(); 16], [UnitPair::default(); 16], [0u32; 1]);
+        assert_eq!(n, cells.len());
+        let state = NetState::spiking(&mut cells, &mut units, &mut active);
+        let net = Network::new(&k, layout, state, InputFilter::All).unwrap();
+        let span = |x: u16, y: u16| {
+            let s = net.state_at(x, y).unwrap();
+            let first = layout.cell(x, y).unwrap();
+            let at = |c: usize| core::ptr::from_ref(net.cells.get(c).unwrap());
+            let units = s.units.map(core::ptr::from_ref);
+            let own_units = net.units(first).map(core::ptr::from_ref);
+            assert_eq!(units, own_units, "({x}, {y})");
+            let offset = (s.cells.as_ptr() as usize - at(0) as usize) / size_of::<Cell>();
+            (offset, s.cells.len())
+        };
+        // Row 1 starts at cell 8: a left edge, the middle, a right edge.
+        assert_eq!(span(0, 1), (8, 3));
+        assert_eq!(span(4, 1), (10, 5));
+        assert_eq!(span(7, 1), (13, 3));
+        assert!(net.state_at(8, 0).is_none());
+        // A network of cells only (the calibrated readout's) has no units.
+        let mut cells = [Cell::default(); 16];
+        let net = Network::new(&k, layout, NetState::cells(&mut cells), InputFilter::All).unwrap();
+        assert!(net.state_at(4, 1).unwrap().units.is_none());
+        assert_eq!(net.state_at(4, 1).unwrap().cells.len(), 5);
+    }
 }

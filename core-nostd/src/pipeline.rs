@@ -13,7 +13,7 @@
 use crate::event::Event;
 use crate::flags;
 use crate::layout::Layout;
-use crate::network::{Cell, Network, NextInput, PoolUse, UnitPair};
+use crate::network::{EventState, Network, NextInput, PoolUse};
 use crate::readout::{Readout, Side, SideSink, YawSample};
 use crate::time::EventTime;
 
@@ -171,7 +171,7 @@ impl<'a, L: Layout, R: Readout> Pipeline<'a, L, R> {
 
     /// The main network's state an event at `(x, y)` will touch first
     /// ([`Network::state_at`]).
-    pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {
+    pub fn state_at(&self, x: u16, y: u16) -> Option<EventState<'_>> {
         self.net.state_at(x, y)
     }
 

@@ -17,8 +17,8 @@ use fixed::types::U16F16;
 use crate::event::Event;
 use crate::layout::{Dense, Layout, PaperBoxes, UnitMask};
 use crate::network::{
-    active_words, Cell, InputFilter, NetError, NetState, NetStats, Network, NextInput, PoolUse,
-    UnitPair,
+    active_words, EventState, InputFilter, NetError, NetState, NetStats, Network, NextInput,
+    PoolUse,
 };
 use crate::pipeline::{Pipeline, Sides, ONSET_GAP_US};
 use crate::readout::calibrated::{default_tau_a_us, has_near, Calibrated, Calibration};
@@ -578,7 +578,7 @@ impl<'a, R: Readout> OnLayout<'a, R> {
     }
 
     /// The state an event at `(x, y)` will touch first (see [`Pipeline::state_at`]).
-    pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {
+    pub fn state_at(&self, x: u16, y: u16) -> Option<EventState<'_>> {
         each_layout_pipeline!(self, p => p.state_at(x, y))
     }
 
@@ -676,7 +676,7 @@ impl Built<'_> {
     }
 
     /// The state an event at `(x, y)` will touch first (see [`Pipeline::state_at`]).
-    pub fn state_at(&self, x: u16, y: u16) -> Option<(&Cell, Option<&UnitPair>)> {
+    pub fn state_at(&self, x: u16, y: u16) -> Option<EventState<'_>> {
         each_pipeline!(self, p => p.state_at(x, y))
     }
 

@@ -73,7 +73,7 @@ impl Lookahead {
     /// positions later in the input ([`prefetch`]).
     #[inline]
     pub fn prefetch_pixel(&self, x: u16, y: u16) {
-        if let Some(slot) = self.pixel(x, y).and_then(|p| self.last.get(p)) {
+        if let Some(slot) = self.pixel(x, y).and_then(|p| self.last.get(p..=p)) {
             prefetch(slot);
         }
     }
@@ -143,20 +143,28 @@ impl Lookahead {
     }
 }
 
-/// Asks the processor to bring the memory of `r` into its cache, without waiting for it: the
-/// state an event a few positions later will touch ([`PREFETCH_DISTANCE`]).
+/// Bytes of a cache line (x86-64).
+const CACHE_LINE: usize = 64;
+
+/// Asks the processor to bring every cache line of `items` into its cache, without waiting
+/// for them: the state an event a few positions later will touch ([`PREFETCH_DISTANCE`]).
 #[inline(always)]
-pub fn prefetch<T>(r: &T) {
-    prefetch_ptr(std::ptr::from_ref(r));
+pub fn prefetch<T>(items: &[T]) {
+    let bytes = core::mem::size_of_val(items);
+    let start = items.as_ptr().cast::<u8>();
+    // Each line the items begin in, then the line of their last byte.
+    let lines = (0..bytes).step_by(CACHE_LINE).chain(bytes.checked_sub(1));
+    for offset in lines {
+        prefetch_byte(start.wrapping_add(offset));
+    }
 }
 
-/// [`prefetch`] for an address that need not be valid, such as one past a slice's ends (a
-/// hint: nothing is read).
+/// Asks for the cache line of byte `p` (within an object: see [`prefetch`]).
 #[inline(always)]
-pub fn prefetch_ptr<T>(p: *const T) {
+fn prefetch_byte(p: *const u8) {
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch is a hint that never faults, whatever the address, and reads
-    // nothing into the program.
+    // SAFETY: a prefetch is a hint that never faults and reads nothing into the program; `p`
+    // lies within a borrowed object besides.
     unsafe {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
         _mm_prefetch::<_MM_HINT_T0>(p.cast());
