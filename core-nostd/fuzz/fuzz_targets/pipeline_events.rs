@@ -87,9 +87,9 @@ fn calibrated(width: u16, height: u16, layout: LayoutChoice, data: &[u8]) {
 }
 
 /// The paper's readout on the spiking dense network of a 64 x 24 sensor: its samples and spike
-/// count, the events fed live or (`ahead`) each with its pixel's next event. `None` where the
+/// count, `evs` fed live or (`ahead`) each with its pixel's next event. `None` where the
 /// network cannot be built.
-fn normalized(data: &[u8], ahead: bool) -> Option<(Vec<YawSample>, u64)> {
+fn normalized(evs: &[Event], ahead: bool) -> Option<(Vec<YawSample>, u64)> {
     let k = Kernel::DEFAULT;
     let layout = Dense::new(64, 24, 2)?;
     let n = layout.cell_count();
@@ -102,14 +102,13 @@ fn normalized(data: &[u8], ahead: bool) -> Option<(Vec<YawSample>, u64)> {
     let net = Network::new(&k, layout, state, InputFilter::All).ok()?;
     let mut p = Pipeline::new(net, Normalized::new(10_000, 1_000), 1_000);
     let mut samples = Vec::new();
-    let evs: Vec<Event> = events(data).collect();
     let last = evs.last().map_or(0, |e| e.t_us);
     if ahead {
-        for (ev, next) in read_ahead(&evs) {
+        for (ev, next) in read_ahead(evs) {
             p.event_ahead(ev, next, &mut |s| samples.push(s));
         }
     } else {
-        for &ev in &evs {
+        for &ev in evs {
             p.event(ev, &mut |s| samples.push(s));
         }
     }
@@ -122,7 +121,8 @@ fuzz_target!(|data: &[u8]| {
     calibrated(240, 30, LayoutChoice::PaperBoxes, data);
     // The spiking network with the paper's readout: the same samples and spikes with the
     // events read ahead (`Network::event_in_ahead`) as live.
-    if let (Some(live), Some(ahead)) = (normalized(data, false), normalized(data, true)) {
+    let evs: Vec<Event> = events(data).collect();
+    if let (Some(live), Some(ahead)) = (normalized(&evs, false), normalized(&evs, true)) {
         assert_eq!(ahead.1, live.1);
         assert_eq!(ahead.0, live.0);
     }
