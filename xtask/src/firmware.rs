@@ -124,12 +124,56 @@ fn firmware_cargo() -> Command {
     c
 }
 
+/// Whether a firmware build is also its clippy run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Lint {
+    /// A plain `cargo build`.
+    No,
+    /// The firmware's own crate compiled by clippy's driver, warnings denied: what `cargo
+    /// clippy -- -D warnings` reports, but from a build. `cargo clippy` only checks, so the
+    /// dependencies (embassy, the STM32 register crates) would be compiled twice, once checked
+    /// and once built: about 60 s of `cargo xtask test` on 2 cores for the three boards.
+    DenyWarnings,
+}
+
+/// Makes `c` (a firmware `cargo` command) compile the firmware's crate with clippy's driver,
+/// as `cargo clippy` does: `RUSTC_WORKSPACE_WRAPPER` names the driver (it sits beside the
+/// toolchain's `cargo`), `CLIPPY_ARGS` carries the lint flags the way `cargo clippy` hands them
+/// over (each followed by `__CLIPPY_HACKERY__`).
+fn lint_with_clippy(c: &mut Command) -> Result<()> {
+    let cargo = std::env::var_os("CARGO").context("CARGO is not set: run this as `cargo xtask`")?;
+    let driver = std::path::Path::new(&cargo).with_file_name("clippy-driver");
+    if !driver.exists() {
+        bail!(
+            "no clippy-driver beside {} (rustup component add clippy)",
+            std::path::Path::new(&cargo).display()
+        );
+    }
+    c.env("RUSTC_WORKSPACE_WRAPPER", driver).env(
+        "CLIPPY_ARGS",
+        "-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__",
+    );
+    Ok(())
+}
+
 /// Builds the firmware for `board` (release) and copies its ELF to [`elf`]`(board)`.
 pub fn build(board: Board) -> Result<()> {
+    build_with(board, Lint::No)
+}
+
+/// [`build`], linted or not.
+fn build_with(board: Board, lint: Lint) -> Result<()> {
     ensure_target()?;
     let mut c = firmware_cargo();
     c.args(["build", "--release"]).args(board.cargo_args());
-    run(&format!("firmware build ({})", board.name()), c)?;
+    let what = match lint {
+        Lint::No => format!("firmware build ({})", board.name()),
+        Lint::DenyWarnings => {
+            lint_with_clippy(&mut c)?;
+            format!("firmware build and clippy ({})", board.name())
+        }
+    };
+    run(&what, c)?;
     // Cargo puts every board's image at one path (a build that is up to date puts it there
     // again), so each board's is kept apart as soon as it is built.
     let (built, kept) = (xtask::firmware_built("tde-firmware"), elf(board));
@@ -292,26 +336,25 @@ pub fn check() -> Result<()> {
     c.args(["fmt", "--check"]);
     run("firmware fmt --check", c)?;
     for board in BOARDS {
-        let mut c = firmware_cargo();
-        c.args(["clippy", "--release"])
-            .args(board.cargo_args())
-            .args(["--", "-D", "warnings"]);
-        run(&format!("firmware clippy ({})", board.name()), c)?;
-        build(board)?;
+        build_with(board, Lint::DenyWarnings)?;
         size(board)?;
     }
     // The event path (link receiver + pipeline) must link no panic: this binary's panic handler
-    // calls an undefined symbol (see firmware/src/bin/no-panic-check.rs).
+    // calls an undefined symbol (see firmware/src/bin/no-panic-check.rs). Built (and linted)
+    // with the QEMU board above; linted here too, so that nothing is built again.
     let mut c = firmware_cargo();
     c.args(["build", "--release", "--bin", "no-panic-check"])
         .args(Board::Qemu.cargo_args());
+    lint_with_clippy(&mut c)?;
     run("firmware no-panic-check (the event path links no panic)", c)?;
-    // One test at a time: each QEMU run takes a core, and the tests share their recordings.
     // The release profile with overflow checks, as the workspace tests of `test`, so that
-    // nothing is built again.
+    // nothing is built again. Two at a time, each QEMU run on a core of its own: a run's output
+    // and counters do not depend on the host's load, since QEMU runs with `-icount
+    // shift=N,sleep=off` (the emulated clock counts instructions, also while the firmware
+    // idles), and the recordings the tests share are made once, behind `OnceLock`s.
     let mut c = cargo();
     c.args(["test", "--release", "-p", "xtask", "--test", "qemu", "--"])
-        .args(["--ignored", "--test-threads=1", "--nocapture"]);
+        .args(["--ignored", "--test-threads=2", "--nocapture"]);
     c.env("CARGO_PROFILE_RELEASE_OVERFLOW_CHECKS", "true");
     run("QEMU system tests (xtask/tests/qemu.rs)", c)
 }
