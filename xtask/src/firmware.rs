@@ -347,13 +347,14 @@ pub fn check() -> Result<()> {
         .args(Board::Qemu.cargo_args());
     lint_with_clippy(&mut c)?;
     run("firmware no-panic-check (the event path links no panic)", c)?;
-    // The release profile with overflow checks, as the workspace tests of `test`, so that
-    // nothing is built again. Two at a time, each QEMU run on a core of its own: a run's output
+    // The release profile with overflow checks and the workspace's features (`--workspace`:
+    // as the workspace tests of `test` resolve them; `-p xtask` alone would build the core
+    // and `fixed` again without the oracle), so that nothing is built again. Two at a time, each QEMU run on a core of its own: a run's output
     // and counters do not depend on the host's load, since QEMU runs with `-icount
     // shift=N,sleep=off` (the emulated clock counts instructions, also while the firmware
     // idles), and the recordings the tests share are made once, behind `OnceLock`s.
     let mut c = cargo();
-    c.args(["test", "--release", "-p", "xtask", "--test", "qemu", "--"])
+    c.args(["test", "--release", "--workspace", "--test", "qemu", "--"])
         .args(["--ignored", "--test-threads=2", "--nocapture"]);
     c.env("CARGO_PROFILE_RELEASE_OVERFLOW_CHECKS", "true");
     run("QEMU system tests (xtask/tests/qemu.rs)", c)

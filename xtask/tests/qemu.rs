@@ -3,7 +3,7 @@
 //!
 //! Ignored by a plain `cargo test`: they need `qemu-system-arm` and the QEMU firmware build.
 //! `cargo xtask test` (and `cargo xtask firmware-test`) builds the firmware, then runs them with
-//! `cargo test --release -p xtask --test qemu -- --ignored --test-threads=2 --nocapture`.
+//! `cargo test --release --workspace --test qemu -- --ignored --test-threads=2 --nocapture`.
 //! Their files are in `target/xtask-qemu-test/`; each run prints the firmware's counters
 //! (`instructions_per_event` among them).
 
