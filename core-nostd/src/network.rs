@@ -1613,10 +1613,10 @@ mod tests {
         let net = Network::new(&k, layout, state, InputFilter::All).unwrap();
         let span = |x: u16, y: u16| {
             let s = net.state_at(x, y).unwrap();
-            let first = layout.cell(x, y).unwrap();
+            let own = layout.cell(x, y).unwrap();
             let at = |c: usize| core::ptr::from_ref(net.cells.get(c).unwrap());
             let units = s.units.map(core::ptr::from_ref);
-            let own_units = net.units(first).map(core::ptr::from_ref);
+            let own_units = net.units(own).map(core::ptr::from_ref);
             assert_eq!(units, own_units, "({x}, {y})");
             let offset = (s.cells.as_ptr() as usize - at(0) as usize) / size_of::<Cell>();
             (offset, s.cells.len())

@@ -6,9 +6,8 @@
 //! toolchain install nightly` where it is not there).
 //!
 //! The smoke run of `cargo xtask test` ([`smoke`]) builds at `opt-level` 1 ([`Build`]) and
-//! without a sanitizer: the fuzzed code
-//! is safe Rust (the core forbids `unsafe`), so in its 5 s per target the crashes it can find
-//! are panics, which libFuzzer catches either way; ASan's instrumentation would cost CI about
+//! without a sanitizer: the fuzzed code is safe Rust (the core forbids `unsafe`), so in its
+//! 5 s per target the crashes it can find are panics, which libFuzzer catches either way; ASan's instrumentation would cost CI about
 //! 100 s of building (the host tool's fuzz crate from scratch: 260 s with ASan, 163 s
 //! without). ASan is for the long runs, where unsafe code in the dependencies (decompressors,
 //! flatbuffers) gets the time to meet a bad input.
@@ -52,8 +51,9 @@ struct Build {
     sanitizer: Sanitizer,
     /// The release profile's `opt-level`: 3 (cargo's own) for fuzzing, 1 for the smoke run of
     /// `cargo xtask test`. There the build is most of the cost and the 5 s runs barely
-    /// notice: 223 s against 277 s of building from scratch on 2 cores, while `pipeline_events`
-    /// ran 1 213 inputs in its 5 s against 3 613 (the others 0.6-1.5 times as many).
+    /// notice: in clean-clone runs on 2 cores the two crates built from scratch in 223 s
+    /// against 277 s at 3, and `pipeline_events` ran 2 553 inputs in its 5 s against 3 613
+    /// (the other targets 0.8-1.3 times as many).
     opt_level: u8,
 }
 

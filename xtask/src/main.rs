@@ -205,8 +205,8 @@ fn test() -> Result<()> {
         .args(["--", "-D", "warnings"]);
     run("cargo clippy (core-nostd for thumbv7em-none-eabihf)", c)?;
     firmware::check()?;
-    // A short smoke run of every fuzz target, without a sanitizer (the long run, with ASan:
-    // `cargo xtask fuzz --seconds 3600`).
+    // A short smoke run of every fuzz target, without a sanitizer and at opt-level 1 (the long
+    // run, with ASan and fully optimised: `cargo xtask fuzz --seconds 3600`).
     fuzz::smoke()?;
     eprintln!("xtask: all checks passed");
     Ok(())
