@@ -52,8 +52,8 @@ struct Build {
     /// The release profile's `opt-level`: 3 (cargo's own) for fuzzing, 1 for the smoke run of
     /// `cargo xtask test`. There the build is most of the cost and the 5 s runs barely
     /// notice: in clean-clone runs on 2 cores the two crates built from scratch in 223 s
-    /// against 277 s at 3, and `pipeline_events` ran 2 553 inputs in its 5 s against 3 613
-    /// (the other targets 0.8-1.3 times as many).
+    /// against 277 s at 3, and `pipeline_events` ran 2 245-2 553 inputs in its 5 s against
+    /// 3 613 (the other targets 0.7-1.3 times as many).
     opt_level: u8,
 }
 
