@@ -151,7 +151,8 @@ fn nightly_cargo() -> Command {
     c
 }
 
-fn ensure_tools() -> Result<()> {
+/// Installs the nightly toolchain and cargo-fuzz where they are missing.
+pub fn ensure_tools() -> Result<()> {
     let has_nightly = Command::new("rustup")
         .args(["toolchain", "list"])
         .output()
