@@ -330,14 +330,10 @@ pub fn qemu(args: &[String]) -> Result<()> {
     Ok(())
 }
 
-/// The firmware part of `cargo xtask test`: [`build_all`], then [`qemu_tests`].
+/// The firmware part of `cargo xtask test`: fmt, clippy, build and size check of every board,
+/// the no-panic link check, then the QEMU system tests (`xtask/tests/qemu.rs`, ignored by a
+/// plain `cargo test`: they need QEMU and the firmware just built).
 pub fn check() -> Result<()> {
-    build_all()?;
-    qemu_tests()
-}
-
-/// fmt, clippy, build and size check of every board, and the no-panic link check.
-pub fn build_all() -> Result<()> {
     ensure_target()?;
     let mut c = firmware_cargo();
     c.args(["fmt", "--check"]);
@@ -353,12 +349,7 @@ pub fn build_all() -> Result<()> {
     c.args(["build", "--release", "--bin", "no-panic-check"])
         .args(Board::Qemu.cargo_args());
     lint_with_clippy(&mut c)?;
-    run("firmware no-panic-check (the event path links no panic)", c)
-}
-
-/// The QEMU system tests (`xtask/tests/qemu.rs`, ignored by a plain `cargo test`: they need
-/// QEMU and the firmware [`build_all`] built).
-pub fn qemu_tests() -> Result<()> {
+    run("firmware no-panic-check (the event path links no panic)", c)?;
     // The release profile with overflow checks and the workspace's features (`--workspace`:
     // as the workspace tests of `test` resolve them; `-p xtask` alone would build the core
     // and `fixed` again without the oracle), so that nothing is built again. Two at a time,

@@ -151,8 +151,7 @@ fn nightly_cargo() -> Command {
     c
 }
 
-/// Installs the nightly toolchain and cargo-fuzz where they are missing.
-pub fn ensure_tools() -> Result<()> {
+fn ensure_tools() -> Result<()> {
     let has_nightly = Command::new("rustup")
         .args(["toolchain", "list"])
         .output()

@@ -40,42 +40,14 @@ pub fn cargo() -> Command {
     c
 }
 
-thread_local! {
-    /// Whether [`run`] on this thread holds its commands' output back ([`with_held_output`]).
-    static HOLD_OUTPUT: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
-/// Runs `f` with every [`run`] on this thread holding its command's output back and printing it
-/// in one piece when the command ends: how `cargo xtask test` keeps the log readable while two
-/// lanes of steps run at once.
-pub fn with_held_output<T>(f: impl FnOnce() -> T) -> T {
-    let before = HOLD_OUTPUT.replace(true);
-    let r = f();
-    HOLD_OUTPUT.set(before);
-    r
-}
-
-/// Runs `cmd` (its output to the terminal, or held back and printed when it ends inside
-/// [`with_held_output`]); fails unless it exits with 0. Says how long it took (where a `cargo
-/// xtask test` run spends its time).
+/// Runs `cmd` (its output to the terminal); fails unless it exits with 0. Says how long it
+/// took (where a `cargo xtask test` run spends its time).
 pub fn run(what: &str, mut cmd: Command) -> Result<()> {
     eprintln!("xtask: {what}");
     let start = std::time::Instant::now();
-    let status = if HOLD_OUTPUT.get() {
-        let out = cmd
-            .stdin(std::process::Stdio::null())
-            .output()
-            .with_context(|| format!("cannot start: {what}"))?;
-        let mut block = format!("xtask: output of {what}:\n");
-        block.push_str(&String::from_utf8_lossy(&out.stdout));
-        block.push_str(&String::from_utf8_lossy(&out.stderr));
-        // One write, so that the other lane's lines do not cut through it.
-        let _ = std::io::Write::write_all(&mut std::io::stderr().lock(), block.as_bytes());
-        out.status
-    } else {
-        cmd.status()
-            .with_context(|| format!("cannot start: {what}"))?
-    };
+    let status = cmd
+        .status()
+        .with_context(|| format!("cannot start: {what}"))?;
     if !status.success() {
         bail!("failed: {what} ({status})");
     }

@@ -136,41 +136,8 @@ fn is_root() -> bool {
         .unwrap_or(false)
 }
 
-/// Everything CI runs, in two lanes at once: the host's checks (fmt, clippy, docs, the
-/// workspace tests, the example, the core linted for Cortex-M) and, on a thread beside them, the
-/// firmware's builds and the fuzz smoke run, whose output is held back and printed in one piece
-/// per command ([`xtask::with_held_output`]). Each lane alone leaves a core idle much of the
-/// time (a build's last crates and links, a test binary with fewer tests than cores); together
-/// they keep both busy. The QEMU system tests need both lanes' builds and run last.
 fn test() -> Result<()> {
     setup()?;
-    // Installed before the lanes start, so that they never install one thing twice at once.
-    firmware::ensure_target()?;
-    fuzz::ensure_tools()?;
-    let cross = std::thread::spawn(|| {
-        xtask::with_held_output(|| {
-            firmware::build_all()?;
-            // A short smoke run of every fuzz target, without a sanitizer and at opt-level 1
-            // (the long run, with ASan and fully optimised: `cargo xtask fuzz --seconds 3600`).
-            fuzz::smoke()
-        })
-    });
-    let host = host_checks();
-    if let Err(e) = &host {
-        eprintln!("xtask: error: {e:#}; waiting for the firmware and fuzz lane to end");
-    }
-    let cross = cross
-        .join()
-        .unwrap_or_else(|_| Err(anyhow::anyhow!("the firmware and fuzz lane panicked")));
-    host?;
-    cross?;
-    firmware::qemu_tests()?;
-    eprintln!("xtask: all checks passed");
-    Ok(())
-}
-
-/// The host lane of [`test`]: the steps that build into the workspace's target folder.
-fn host_checks() -> Result<()> {
     let mut c = cargo();
     c.args(["fmt", "--all", "--check"]);
     run("cargo fmt --check", c)?;
@@ -229,13 +196,20 @@ fn host_checks() -> Result<()> {
         "example edge_sweep (events -> network -> readout -> yaw)",
         c,
     )?;
+    firmware::ensure_target()?;
     // The core as the firmware gets it (no features: no std, no oracle), linted: the
     // workspace's clippy above sees it with the host's features (`oracle`), and the firmware's
     // builds below compile it for the board but lint only the firmware's own crate.
     let mut c = cargo();
     c.args(["clippy", "-p", "core-nostd", "--target", TARGET])
         .args(["--", "-D", "warnings"]);
-    run("cargo clippy (core-nostd for thumbv7em-none-eabihf)", c)
+    run("cargo clippy (core-nostd for thumbv7em-none-eabihf)", c)?;
+    firmware::check()?;
+    // A short smoke run of every fuzz target, without a sanitizer and at opt-level 1 (the long
+    // run, with ASan and fully optimised: `cargo xtask fuzz --seconds 3600`).
+    fuzz::smoke()?;
+    eprintln!("xtask: all checks passed");
+    Ok(())
 }
 
 /// The main job: the firmware, emulated, on a built-in synthetic recording, its yaw rate judged
