@@ -3,8 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-mod common;
-use common::host_sim;
+use crate::common::host_sim;
 
 fn run_ok(cmd: &mut Command) -> String {
     let out = cmd.output().expect("run host-sim");

@@ -5,8 +5,7 @@ use std::path::{Path, PathBuf};
 
 use host_sim::testdata::shared_data;
 
-mod common;
-use common::host_sim;
+use crate::common::host_sim;
 
 /// Runs `convert input --to csv` (plus `extra` arguments) and checks the failure: exit code 2,
 /// one stderr line starting with `error: ` naming the file and containing every `needles`.

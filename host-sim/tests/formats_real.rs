@@ -7,8 +7,7 @@ use std::path::{Path, PathBuf};
 use host_sim::formats::{self, Event64, Format};
 use host_sim::testdata::shared_data;
 
-mod common;
-use common::convert;
+use crate::common::convert;
 
 /// (recording, reference CSV, format, width, height, events)
 const REAL: [(&str, &str, Format, u16, u16, usize); 3] = [

@@ -10,8 +10,7 @@ use core_nostd::evt::{evt2, evt21};
 use host_sim::formats::{self, Event64, Format};
 use host_sim::testdata::shared_data;
 
-mod common;
-use common::convert;
+use crate::common::convert;
 
 /// Direct CSV, and CSV after a trip through EVT 3.0, must be byte-identical.
 fn round_trip(input: &Path, tmp: &Path) {

@@ -1,7 +1,6 @@
 //! `host-sim sweep`: the public CSV interface, the plot, and the error convention.
 
-mod common;
-use common::host_sim;
+use crate::common::host_sim;
 
 #[test]
 fn sweep_writes_the_documented_csv_and_plot() {

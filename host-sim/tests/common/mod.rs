@@ -1,6 +1,4 @@
 //! Helpers shared by the integration tests that run the `host-sim` binary.
-// Each test crate uses a subset.
-#![allow(dead_code)]
 
 use std::path::Path;
 use std::process::Command;
