@@ -6,11 +6,11 @@
 //! toolchain install nightly` where it is not there).
 //!
 //! The smoke run of `cargo xtask test` ([`smoke`]) builds at `opt-level` 1 ([`Build`]) and
-//! without a sanitizer: the fuzzed code is safe Rust (the core forbids `unsafe`), so in its
-//! 5 s per target the crashes it can find are panics, which libFuzzer catches either way; ASan's instrumentation would cost CI about
-//! 100 s of building (the host tool's fuzz crate from scratch: 260 s with ASan, 163 s
-//! without). ASan is for the long runs, where unsafe code in the dependencies (decompressors,
-//! flatbuffers) gets the time to meet a bad input.
+//! without a sanitizer: the fuzzed code is safe Rust (the core forbids `unsafe`), so in its 5 s
+//! per target the crashes it can find are panics, which libFuzzer catches either way. ASan's
+//! instrumentation costs building time (at `opt-level` 3 the host tool's fuzz crate built from
+//! scratch in 260 s with it, 163 s without). ASan is for the long runs, where unsafe code in
+//! the dependencies (decompressors, flatbuffers) gets the time to meet a bad input.
 
 use std::process::Command;
 
@@ -49,15 +49,19 @@ fn targets() -> Result<Vec<Target>> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Build {
     sanitizer: Sanitizer,
-    /// The release profile's `opt-level`: 3 (cargo's own) for fuzzing, 1 for the smoke run of
-    /// `cargo xtask test`. There the build is most of the cost and the 5 s runs barely
-    /// notice: in clean-clone runs on 2 cores the two crates built from scratch in 223 s
-    /// against 277 s at 3, and `pipeline_events` ran 2 245-2 553 inputs in its 5 s against
-    /// 3 613 (the other targets 0.7-1.3 times as many).
+    /// The release profile's `opt-level`: [`Build::FULL_OPT_LEVEL`] for fuzzing, 1 for the
+    /// smoke run of `cargo xtask test`. There the build is most of the cost and the 5 s runs
+    /// barely notice: in three clean-clone runs on 2 cores the two crates built from scratch in
+    /// 223-268 s against 277 s at 3 (one run), and `pipeline_events` ran 2 245-2 553 inputs
+    /// in its 5 s against 3 613 (the other targets 0.7-1.3 times as many).
     opt_level: u8,
 }
 
 impl Build {
+    /// Cargo's own `opt-level` of the release profile: the fuzzing builds', whose target
+    /// folders keep their names from before the smoke run's level existed.
+    const FULL_OPT_LEVEL: u8 = 3;
+
     /// The smoke run's build.
     const SMOKE: Self = Self {
         sanitizer: Sanitizer::None,
@@ -74,7 +78,7 @@ impl Build {
             Sanitizer::None => "fuzz-nosan",
         };
         let name = match self.opt_level {
-            3 => sanitizer.to_string(),
+            Self::FULL_OPT_LEVEL => sanitizer.to_string(),
             o => format!("{sanitizer}-o{o}"),
         };
         xtask::target_dir().join(name)
@@ -205,7 +209,7 @@ pub fn fuzz(args: &[String]) -> Result<()> {
     }
     let build = Build {
         sanitizer,
-        opt_level: 3,
+        opt_level: Build::FULL_OPT_LEVEL,
     };
     run_targets(&chosen, seconds, build)
 }
