@@ -51,8 +51,8 @@ struct Build {
     sanitizer: Sanitizer,
     /// The release profile's `opt-level`: [`Build::FULL_OPT_LEVEL`] for fuzzing, 1 for the
     /// smoke run of `cargo xtask test`. There the build is most of the cost and the 5 s runs
-    /// barely notice: in three clean-clone runs on 2 cores the two crates built from scratch in
-    /// 223-268 s against 277 s at 3 (one run), and `pipeline_events` ran 2 245-2 553 inputs
+    /// barely notice: in four clean-clone runs on 2 cores the two crates built from scratch in
+    /// 198-268 s against 277 s at 3 (one run), and `pipeline_events` ran 2 245-2 684 inputs
     /// in its 5 s against 3 613 (the other targets 0.7-1.3 times as many).
     opt_level: u8,
 }
